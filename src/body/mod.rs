@@ -1,0 +1,293 @@
+//! A deformable body of the paper (MODEL.md §1): a surface of point masses joined by damped edge
+//! springs, a virtual rigid component, and one zero-rest-length damped link per surface node to its
+//! homologue on the rigid component.
+//!
+//! State is laid out as structure of arrays ([`Surface`], [`Edges`]) indexed by node and edge number.
+//! Every buffer the step writes is sized when the body is built, so stepping never allocates.
+
+mod rigid;
+
+pub use rigid::RigidComponent;
+
+use crate::Vec3;
+use crate::scene::mesh::SurfaceMesh;
+use nalgebra::UnitQuaternion;
+
+/// The mechanical parameters of a body, SI units (see the README's scene format).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyParams {
+    /// Total mass of the surface nodes (kg), spread over the nodes by area.
+    pub surface_mass: f64,
+    /// Mass of the virtual rigid component (kg).
+    pub rigid_mass: f64,
+    /// Stiffness of each edge spring (N/m).
+    pub surface_stiffness: f64,
+    /// Damping of each edge spring (N·s/m).
+    pub surface_damping: f64,
+    /// Stiffness of each node's link to its homologue (N/m).
+    pub link_stiffness: f64,
+    /// Damping of each node's link (N·s/m).
+    pub link_damping: f64,
+    /// Air viscosity per unit mass (1/s): a node of mass m feels −ν m v; the rigid component −ν M V
+    /// and the torque −ν I ω.
+    pub air_viscosity: f64,
+    /// Coulomb coefficient between this body and tools.
+    pub friction: f64,
+    /// When true the rigid component is held where the scene puts it (an organ attached to the
+    /// abdominal wall); the surface still deforms around it.
+    pub fixed: bool,
+}
+
+impl Default for BodyParams {
+    fn default() -> Self {
+        Self {
+            surface_mass: 0.2,
+            rigid_mass: 1.0,
+            surface_stiffness: 50.0,
+            surface_damping: 0.01,
+            link_stiffness: 20.0,
+            link_damping: 0.05,
+            air_viscosity: 0.0,
+            friction: 0.3,
+            fixed: false,
+        }
+    }
+}
+
+/// Surface nodes, structure of arrays. Index `i` is node `i` in every array.
+#[derive(Clone, Debug)]
+pub struct Surface {
+    /// Node positions at the start of the current step (m, world frame).
+    pub position_in_world: Vec<Vec3>,
+    /// Node positions at the end of the step being computed (m, world frame); swapped with
+    /// `position_in_world` when the step is done, so a step keeps both ends of every trajectory.
+    pub next_position_in_world: Vec<Vec3>,
+    /// Node velocities (m/s, world frame).
+    pub velocity_in_world: Vec<Vec3>,
+    /// Force accumulated on each node during the step (N, world frame).
+    pub force_in_world: Vec<Vec3>,
+    /// Node masses (kg).
+    pub mass: Vec<f64>,
+    /// Inverse node masses (1/kg).
+    pub inverse_mass: Vec<f64>,
+    /// Air viscosity coefficient of each node (N·s/m): ν mᵢ.
+    pub air_damping: Vec<f64>,
+    /// Homologue of each node on the rigid component (m, body frame).
+    pub homologue_in_body: Vec<Vec3>,
+    /// Homologue positions this step (m, world frame); scratch refreshed by the force stage.
+    pub homologue_in_world: Vec<Vec3>,
+    /// Link stiffness of each node (N/m).
+    pub link_stiffness: Vec<f64>,
+    /// Link damping of each node (N·s/m).
+    pub link_damping: Vec<f64>,
+    /// Triangles, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Edge springs, structure of arrays. Index `e` is edge `e` in every array.
+#[derive(Clone, Debug, Default)]
+pub struct Edges {
+    /// First node of each edge.
+    pub a: Vec<u32>,
+    /// Second node of each edge.
+    pub b: Vec<u32>,
+    /// Rest length (m).
+    pub rest_length: Vec<f64>,
+    /// Stiffness (N/m).
+    pub stiffness: Vec<f64>,
+    /// Damping (N·s/m).
+    pub damping: Vec<f64>,
+}
+
+impl Edges {
+    /// Number of edges.
+    pub fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    /// True when there are no edges.
+    pub fn is_empty(&self) -> bool {
+        self.a.is_empty()
+    }
+}
+
+/// One deformable body.
+#[derive(Clone, Debug)]
+pub struct Body {
+    /// Name from the scene.
+    pub name: String,
+    /// The surface component.
+    pub surface: Surface,
+    /// The edge springs.
+    pub edges: Edges,
+    /// The virtual rigid component.
+    pub rigid: RigidComponent,
+    /// Parameters the body was built from.
+    pub params: BodyParams,
+}
+
+/// Initial placement of a body in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    /// Where the body frame's origin (centre of mass of the surface) is (m, world frame).
+    pub position_in_world: Vec3,
+    /// world_from_body rotation.
+    pub world_from_body: UnitQuaternion<f64>,
+    /// Initial linear velocity (m/s, world frame), of both components.
+    pub velocity_in_world: Vec3,
+    /// Initial angular velocity (rad/s, world frame), of both components.
+    pub angular_velocity_in_world: Vec3,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Self {
+            position_in_world: Vec3::zeros(),
+            world_from_body: UnitQuaternion::identity(),
+            velocity_in_world: Vec3::zeros(),
+            angular_velocity_in_world: Vec3::zeros(),
+        }
+    }
+}
+
+impl Body {
+    /// Builds a body from a mesh already in its body frame (see [`SurfaceMesh::validate`] and
+    /// [`SurfaceMesh::recentre_on_surface_centre`], which scenes apply; this constructor checks
+    /// nothing so tests can build odd bodies such as a single node).
+    ///
+    /// Surface mass is spread by area (evenly when the mesh has no area); every edge gets the body's
+    /// stiffness and damping and its current length as rest length; every node a link to a homologue
+    /// at its own body-frame position. The rigid component's inertia is that of the solid the mesh
+    /// encloses with the rigid mass spread uniformly (a point mass's isotropic fallback when the mesh
+    /// encloses no volume).
+    pub fn new(name: &str, mesh: &SurfaceMesh, params: &BodyParams, placement: &Placement) -> Self {
+        let n = mesh.vertex_count();
+        let areas = mesh.vertex_areas();
+        let total_area: f64 = areas.iter().sum();
+        let mass: Vec<f64> = if total_area > 0.0 {
+            areas
+                .iter()
+                .map(|a| params.surface_mass * a / total_area)
+                .collect()
+        } else {
+            vec![params.surface_mass / n as f64; n]
+        };
+        let inverse_mass = mass.iter().map(|m| 1.0 / m).collect();
+        let air_damping = mass.iter().map(|m| params.air_viscosity * m).collect();
+
+        let rotation = placement.world_from_body;
+        let omega = placement.angular_velocity_in_world;
+        let position_in_world: Vec<Vec3> = mesh
+            .positions_in_body
+            .iter()
+            .map(|r| placement.position_in_world + rotation * r)
+            .collect();
+        let velocity_in_world = position_in_world
+            .iter()
+            .map(|x| placement.velocity_in_world + omega.cross(&(x - placement.position_in_world)))
+            .collect();
+
+        let mut edges = Edges::default();
+        for [a, b] in mesh.edges() {
+            let rest =
+                (mesh.positions_in_body[b as usize] - mesh.positions_in_body[a as usize]).norm();
+            edges.a.push(a);
+            edges.b.push(b);
+            edges.rest_length.push(rest);
+            edges.stiffness.push(params.surface_stiffness);
+            edges.damping.push(params.surface_damping);
+        }
+
+        let inertia_in_body = if mesh.triangles.is_empty() || mesh.signed_volume() <= 0.0 {
+            nalgebra::Matrix3::identity() * params.rigid_mass
+        } else {
+            mesh.solid_inertia_about_origin(params.rigid_mass)
+        };
+        let rigid = RigidComponent::new(
+            params.rigid_mass,
+            inertia_in_body,
+            placement,
+            params.air_viscosity,
+            params.fixed,
+        );
+
+        let surface = Surface {
+            next_position_in_world: position_in_world.clone(),
+            homologue_in_world: position_in_world.clone(),
+            position_in_world,
+            velocity_in_world,
+            force_in_world: vec![Vec3::zeros(); n],
+            mass,
+            inverse_mass,
+            air_damping,
+            homologue_in_body: mesh.positions_in_body.clone(),
+            link_stiffness: vec![params.link_stiffness; n],
+            link_damping: vec![params.link_damping; n],
+            triangles: mesh.triangles.clone(),
+        };
+        Self {
+            name: name.to_string(),
+            surface,
+            edges,
+            rigid,
+            params: params.clone(),
+        }
+    }
+
+    /// Number of surface nodes.
+    pub fn node_count(&self) -> usize {
+        self.surface.position_in_world.len()
+    }
+
+    /// Total surface mass (kg).
+    pub fn surface_mass(&self) -> f64 {
+        self.surface.mass.iter().sum()
+    }
+
+    /// Surface mass plus rigid mass (kg).
+    pub fn total_mass(&self) -> f64 {
+        self.surface_mass() + self.rigid.mass
+    }
+
+    /// Centre of mass of the surface nodes (m, world frame).
+    pub fn surface_centre_of_mass(&self) -> Vec3 {
+        let s = &self.surface;
+        let mut sum = Vec3::zeros();
+        for (x, m) in s.position_in_world.iter().zip(&s.mass) {
+            sum += x * *m;
+        }
+        sum / self.surface_mass()
+    }
+
+    /// Velocity of the surface centre of mass (m/s, world frame).
+    pub fn surface_centre_of_mass_velocity(&self) -> Vec3 {
+        let s = &self.surface;
+        let mut sum = Vec3::zeros();
+        for (v, m) in s.velocity_in_world.iter().zip(&s.mass) {
+            sum += v * *m;
+        }
+        sum / self.surface_mass()
+    }
+
+    /// Kinetic energy of the surface nodes plus the rigid component (J).
+    pub fn kinetic_energy(&self) -> f64 {
+        let s = &self.surface;
+        let nodes: f64 = s
+            .velocity_in_world
+            .iter()
+            .zip(&s.mass)
+            .map(|(v, m)| 0.5 * m * v.norm_squared())
+            .sum();
+        nodes + self.rigid.kinetic_energy()
+    }
+
+    /// True when every position and velocity of the body is finite.
+    pub fn is_finite(&self) -> bool {
+        let s = &self.surface;
+        s.position_in_world
+            .iter()
+            .chain(&s.velocity_in_world)
+            .all(|v| v.iter().all(|x| x.is_finite()))
+            && self.rigid.is_finite()
+    }
+}

@@ -1,0 +1,3 @@
+//! Contact responses: nodes against fixed obstacles, with Coulomb friction.
+
+pub mod obstacle;

@@ -1,0 +1,74 @@
+//! Contact of surface nodes with fixed obstacles, with Coulomb friction (MODEL.md §4).
+//!
+//! Runs after the nodes were integrated: each node's trajectory goes from its start-of-step position to
+//! its predicted end position. A node whose end lies inside an obstacle loses its velocity into the
+//! surface (an inelastic contact, normal impulse `m Δv_n`); friction then acts on its tangential
+//! velocity with the Coulomb cone of that impulse — it sticks (tangential velocity cancelled) when the
+//! impulse needed is inside the static cone `μ_s m Δv_n`, and otherwise slides with its tangential speed
+//! reduced by `μ_k Δv_n`. The end position is recomputed from the corrected velocity and finally
+//! projected onto the surface, so no node ends a step inside an obstacle.
+
+use crate::Vec3;
+use crate::body::Surface;
+use crate::collision::obstacle::Obstacle;
+
+/// Resolves every node of `surface` against every obstacle; returns how many node–obstacle contacts
+/// were found this step.
+pub fn resolve_nodes_against_obstacles(
+    surface: &mut Surface,
+    obstacles: &[Obstacle],
+    dt: f64,
+) -> usize {
+    let mut contacts = 0;
+    let n = surface.position_in_world.len();
+    for i in 0..n {
+        let start = surface.position_in_world[i];
+        for obstacle in obstacles {
+            let end = surface.next_position_in_world[i];
+            let Some(plane) = obstacle.shape.contact_plane(&start, &end) else {
+                continue;
+            };
+            contacts += 1;
+            let normal = plane.normal_in_world;
+            let mut velocity = surface.velocity_in_world[i];
+            let normal_speed = velocity.dot(&normal);
+            if normal_speed < 0.0 {
+                let normal_dv = -normal_speed;
+                velocity += normal * normal_dv;
+                velocity = apply_coulomb_friction(
+                    velocity,
+                    &normal,
+                    normal_dv,
+                    obstacle.static_friction,
+                    obstacle.friction,
+                );
+                surface.velocity_in_world[i] = velocity;
+            }
+            let mut end = start + velocity * dt;
+            let depth = plane.signed_distance(&end);
+            if depth < 0.0 {
+                end -= normal * depth;
+            }
+            surface.next_position_in_world[i] = end;
+        }
+    }
+    contacts
+}
+
+/// Coulomb friction on a velocity whose normal part was just cancelled by a normal velocity change
+/// `normal_dv` (≥ 0): stick inside the static cone, otherwise slide with a kinetic decrement.
+pub fn apply_coulomb_friction(
+    velocity: Vec3,
+    normal: &Vec3,
+    normal_dv: f64,
+    static_friction: f64,
+    kinetic_friction: f64,
+) -> Vec3 {
+    let tangential = velocity - normal * velocity.dot(normal);
+    let speed = tangential.norm();
+    if speed <= static_friction * normal_dv {
+        velocity - tangential
+    } else {
+        velocity - tangential * ((kinetic_friction * normal_dv).min(speed) / speed)
+    }
+}

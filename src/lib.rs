@@ -1,0 +1,32 @@
+//! # palpa — the deformable-organ model of a haptic-loop server
+//!
+//! A body (an organ) is a triangle surface of point masses joined by damped edge springs, tied node by
+//! node through zero-rest-length damped links to a *virtual rigid component* that never collides and
+//! gives the body its rigid motion and its rest shape (Meseure & Chaillou 1997; see
+//! `../shared/design/MODEL.md`). The world steps every body with the paper's semi-implicit Euler at
+//! Δt = 1 ms, with contact and Coulomb friction against fixed obstacles.
+//!
+//! Map of the modules, in the order data flows through a step:
+//! - [`scene`]: TOML scene files, meshes (primitives, OBJ), validation with file:line:column errors.
+//! - [`body`]: the surface (structure of arrays), edge springs, links, rigid component.
+//! - [`dynamics`]: forces, integration, stability analysis.
+//! - [`collision`]: obstacle geometry.
+//! - [`contact`]: node–obstacle contact with Coulomb friction.
+//! - [`world`]: the [`World`](world::World) and its step as a list of stages.
+//! - [`trace`]: the CSV trace of a run.
+#![warn(missing_docs)]
+
+pub mod body;
+pub mod collision;
+pub mod contact;
+pub mod dynamics;
+pub mod scene;
+pub mod trace;
+pub mod world;
+
+/// A 3-vector of f64 (SI units; the frame is in the name of whatever holds it).
+pub type Vec3 = nalgebra::Vector3<f64>;
+
+pub use body::{Body, BodyParams, Placement};
+pub use scene::{Scene, SceneError, load_scene, parse_scene};
+pub use world::World;

@@ -1,0 +1,612 @@
+//! Surface meshes: the primitives a scene can ask for (icosphere, ellipsoid, subdivided box), OBJ
+//! files, and the checks every mesh must pass before it becomes a body (closed, oriented 2-manifold
+//! without degenerate triangles).
+//!
+//! Data enters as a primitive description or an OBJ path and leaves as a [`SurfaceMesh`] whose
+//! triangles are wound counter-clockwise seen from outside, with no unreferenced vertices, centred so
+//! that the area-weighted centre of the surface (the centre of mass of the surface nodes, since masses
+//! are spread by area) is at the origin of the body frame.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::Vec3;
+
+/// A triangle surface in the body frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceMesh {
+    /// Vertex positions, in the body frame (m).
+    pub positions_in_body: Vec<Vec3>,
+    /// Triangles as vertex indices, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Why a mesh cannot be used as a body surface.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// The mesh has no triangles.
+    #[error("the mesh has no triangles")]
+    Empty,
+    /// A coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFinite {
+        /// Offending vertex.
+        vertex: u32,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    #[error("triangle {triangle} refers to vertex {vertex}, but the mesh has {count} vertices")]
+    IndexOutOfRange {
+        /// Offending triangle.
+        triangle: usize,
+        /// The index it uses.
+        vertex: u32,
+        /// Number of vertices.
+        count: usize,
+    },
+    /// A triangle has (almost) no area: repeated or collinear corners.
+    #[error(
+        "triangle {triangle} (vertices {a}, {b}, {c}) is degenerate: area {area:e} m² for a longest edge of {longest:e} m"
+    )]
+    Degenerate {
+        /// Offending triangle.
+        triangle: usize,
+        /// Its corners.
+        a: u32,
+        /// Its corners.
+        b: u32,
+        /// Its corners.
+        c: u32,
+        /// Its area.
+        area: f64,
+        /// Its longest edge.
+        longest: f64,
+    },
+    /// An edge is not shared by exactly two triangles: the surface has a hole or a fin.
+    #[error(
+        "the mesh is not a closed manifold: edge ({a}, {b}) is used by {count} triangle(s), expected 2"
+    )]
+    NotClosed {
+        /// Edge end.
+        a: u32,
+        /// Edge end.
+        b: u32,
+        /// How many triangles use it.
+        count: usize,
+    },
+    /// Two triangles traverse an edge in the same direction: the orientation is inconsistent.
+    #[error(
+        "the mesh is not consistently oriented: edge {a} -> {b} is used in the same direction by two triangles"
+    )]
+    Inconsistent {
+        /// Edge start.
+        a: u32,
+        /// Edge end.
+        b: u32,
+    },
+    /// The triangles around a vertex do not form a single fan (two surfaces touching at a point).
+    #[error("the mesh is not a manifold at vertex {vertex}: its triangles form more than one fan")]
+    NonManifoldVertex {
+        /// Offending vertex.
+        vertex: u32,
+    },
+    /// The mesh encloses no volume.
+    #[error("the mesh encloses no volume (signed volume {volume:e} m³)")]
+    NoVolume {
+        /// The signed volume found.
+        volume: f64,
+    },
+    /// The OBJ file could not be read.
+    #[error("cannot read OBJ file {path}: {reason}")]
+    Obj {
+        /// File path as given.
+        path: String,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+impl SurfaceMesh {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions_in_body.len()
+    }
+
+    /// Area of triangle `t`.
+    pub fn triangle_area(&self, t: usize) -> f64 {
+        let [a, b, c] = self.triangles[t].map(|i| self.positions_in_body[i as usize]);
+        0.5 * (b - a).cross(&(c - a)).norm()
+    }
+
+    /// Per-vertex area share: a third of the area of every incident triangle.
+    pub fn vertex_areas(&self) -> Vec<f64> {
+        let mut areas = vec![0.0; self.positions_in_body.len()];
+        for t in 0..self.triangles.len() {
+            let third = self.triangle_area(t) / 3.0;
+            for &v in &self.triangles[t] {
+                areas[v as usize] += third;
+            }
+        }
+        areas
+    }
+
+    /// Total surface area.
+    pub fn area(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| self.triangle_area(t))
+            .sum()
+    }
+
+    /// Signed enclosed volume (positive when triangles are wound counter-clockwise seen from outside).
+    pub fn signed_volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|i| self.positions_in_body[i as usize]);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Unique undirected edges, each as (smaller index, larger index), sorted.
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let mut edges: Vec<[u32; 2]> = self
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]])
+            .map(|[a, b]| [a.min(b), a.max(b)])
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        edges
+    }
+
+    /// Multiplies every coordinate by `scale` (per axis).
+    pub fn scale(&mut self, scale: Vec3) {
+        for p in &mut self.positions_in_body {
+            p.component_mul_assign(&scale);
+        }
+    }
+
+    /// Checks that the mesh is a closed, consistently oriented 2-manifold without degenerate triangles,
+    /// drops unreferenced vertices, and flips the winding if the mesh was wound inside out.
+    pub fn validate(&mut self) -> Result<(), MeshError> {
+        if self.triangles.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        let n = self.positions_in_body.len();
+        for (v, p) in self.positions_in_body.iter().enumerate() {
+            if !p.iter().all(|x| x.is_finite()) {
+                return Err(MeshError::NonFinite { vertex: v as u32 });
+            }
+        }
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &v in tri {
+                if v as usize >= n {
+                    return Err(MeshError::IndexOutOfRange {
+                        triangle: t,
+                        vertex: v,
+                        count: n,
+                    });
+                }
+            }
+        }
+        self.drop_unreferenced_vertices();
+        self.check_degenerate()?;
+        self.check_manifold()?;
+        let volume = self.signed_volume();
+        let extent = self.bounding_diagonal();
+        if volume.abs() <= 1e-12 * extent.powi(3) {
+            return Err(MeshError::NoVolume { volume });
+        }
+        if volume < 0.0 {
+            for tri in &mut self.triangles {
+                tri.swap(1, 2);
+            }
+        }
+        Ok(())
+    }
+
+    fn bounding_diagonal(&self) -> f64 {
+        let mut lo = Vec3::repeat(f64::INFINITY);
+        let mut hi = Vec3::repeat(f64::NEG_INFINITY);
+        for p in &self.positions_in_body {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        (hi - lo).norm()
+    }
+
+    fn drop_unreferenced_vertices(&mut self) {
+        let n = self.positions_in_body.len();
+        let mut used = vec![false; n];
+        for tri in &self.triangles {
+            for &v in tri {
+                used[v as usize] = true;
+            }
+        }
+        if used.iter().all(|&u| u) {
+            return;
+        }
+        let mut remap = vec![u32::MAX; n];
+        let mut kept = Vec::with_capacity(n);
+        for (v, &u) in used.iter().enumerate() {
+            if u {
+                remap[v] = kept.len() as u32;
+                kept.push(self.positions_in_body[v]);
+            }
+        }
+        self.positions_in_body = kept;
+        for tri in &mut self.triangles {
+            *tri = tri.map(|v| remap[v as usize]);
+        }
+    }
+
+    fn check_degenerate(&self) -> Result<(), MeshError> {
+        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
+            let [pa, pb, pc] = [a, b, c].map(|i| self.positions_in_body[i as usize]);
+            let longest = (pb - pa).norm().max((pc - pb).norm()).max((pa - pc).norm());
+            let area = 0.5 * (pb - pa).cross(&(pc - pa)).norm();
+            // Repeated corners, or an area so small against the longest edge that the triangle is a
+            // segment to within rounding (an aspect ratio of 1:1000 is still accepted).
+            if a == b || b == c || c == a || longest == 0.0 || area <= 1e-10 * longest * longest {
+                return Err(MeshError::Degenerate {
+                    triangle: t,
+                    a,
+                    b,
+                    c,
+                    area,
+                    longest,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn check_manifold(&self) -> Result<(), MeshError> {
+        // Directed edges, sorted, so both the closed-surface and the orientation checks are merges.
+        let mut directed: Vec<[u32; 2]> = self
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]])
+            .collect();
+        directed.sort_unstable();
+        for w in directed.windows(2) {
+            if w[0] == w[1] {
+                // Three or more triangles on one edge also show up as a repeated direction, but say
+                // "not closed" for them: that is the real problem.
+                let count = self.edge_use_count(w[0][0], w[0][1]);
+                if count != 2 {
+                    let [a, b] = w[0];
+                    return Err(MeshError::NotClosed {
+                        a: a.min(b),
+                        b: a.max(b),
+                        count,
+                    });
+                }
+                return Err(MeshError::Inconsistent {
+                    a: w[0][0],
+                    b: w[0][1],
+                });
+            }
+        }
+        for &[a, b] in &directed {
+            if directed.binary_search(&[b, a]).is_err() {
+                let count = self.edge_use_count(a, b);
+                return Err(MeshError::NotClosed {
+                    a: a.min(b),
+                    b: a.max(b),
+                    count,
+                });
+            }
+        }
+        // Every edge has exactly two triangles in opposite directions. A vertex is manifold when its
+        // triangles form one fan: following "next corner" links from any of them visits them all.
+        let n = self.positions_in_body.len();
+        let mut start = vec![0usize; n + 1];
+        for tri in &self.triangles {
+            for &v in tri {
+                start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            start[v + 1] += start[v];
+        }
+        // For each vertex, the (next, after-next) corner pairs of its triangles.
+        let mut fill = start.clone();
+        let mut fan = vec![[0u32; 2]; start[n]];
+        for &[a, b, c] in &self.triangles {
+            for (v, x, y) in [(a, b, c), (b, c, a), (c, a, b)] {
+                fan[fill[v as usize]] = [x, y];
+                fill[v as usize] += 1;
+            }
+        }
+        for v in 0..n {
+            let pairs = &mut fan[start[v]..start[v + 1]];
+            pairs.sort_unstable();
+            let first = pairs[0][0];
+            let mut at = first;
+            let mut steps = 0;
+            loop {
+                let Ok(k) = pairs.binary_search_by(|p| p[0].cmp(&at)) else {
+                    return Err(MeshError::NonManifoldVertex { vertex: v as u32 });
+                };
+                at = pairs[k][1];
+                steps += 1;
+                if at == first || steps > pairs.len() {
+                    break;
+                }
+            }
+            if steps != pairs.len() {
+                return Err(MeshError::NonManifoldVertex { vertex: v as u32 });
+            }
+        }
+        Ok(())
+    }
+
+    fn edge_use_count(&self, a: u32, b: u32) -> usize {
+        self.triangles
+            .iter()
+            .filter(|tri| {
+                (0..3).any(|k| {
+                    let (x, y) = (tri[k], tri[(k + 1) % 3]);
+                    (x == a && y == b) || (x == b && y == a)
+                })
+            })
+            .count()
+    }
+
+    /// Moves the mesh so that the area-weighted centre of its vertices is at the origin, and returns
+    /// the offset that was subtracted.
+    pub fn recentre_on_surface_centre(&mut self) -> Vec3 {
+        let areas = self.vertex_areas();
+        let total: f64 = areas.iter().sum();
+        let mut centre = Vec3::zeros();
+        for (p, a) in self.positions_in_body.iter().zip(&areas) {
+            centre += p * *a;
+        }
+        centre /= total;
+        for p in &mut self.positions_in_body {
+            *p -= centre;
+        }
+        centre
+    }
+
+    /// Inertia tensor about the body-frame origin of the solid the mesh encloses, with uniform density
+    /// and the given total mass (divergence theorem over tetrahedra from the origin).
+    pub fn solid_inertia_about_origin(&self, mass: f64) -> nalgebra::Matrix3<f64> {
+        let mut second_moment = nalgebra::Matrix3::zeros();
+        let mut volume = 0.0;
+        for tri in &self.triangles {
+            let [a, b, c] = tri.map(|i| self.positions_in_body[i as usize]);
+            let det = a.dot(&b.cross(&c));
+            volume += det / 6.0;
+            let s = a + b + c;
+            second_moment +=
+                (a * a.transpose() + b * b.transpose() + c * c.transpose() + s * s.transpose())
+                    * (det / 120.0);
+        }
+        let density = mass / volume;
+        let c = second_moment * density;
+        nalgebra::Matrix3::identity() * c.trace() - c
+    }
+}
+
+/// An icosphere of the given radius: an icosahedron whose faces are split in four `subdivisions` times,
+/// every vertex pushed onto the sphere. 12, 42, 162, 642, 2562, 10242, 40962 vertices for 0..=6.
+pub fn icosphere(radius: f64, subdivisions: u32) -> SurfaceMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut positions: Vec<Vec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| Vec3::from(*p).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        // Ordered map: vertex numbering must not depend on hashing.
+        let mut midpoints: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<Vec3>| -> u32 {
+            let key = (a.min(b), a.max(b));
+            *midpoints.entry(key).or_insert_with(|| {
+                let p = ((positions[a as usize] + positions[b as usize]) * 0.5).normalize();
+                positions.push(p);
+                (positions.len() - 1) as u32
+            })
+        };
+        let mut next = Vec::with_capacity(triangles.len() * 4);
+        for &[a, b, c] in &triangles {
+            let ab = midpoint(a, b, &mut positions);
+            let bc = midpoint(b, c, &mut positions);
+            let ca = midpoint(c, a, &mut positions);
+            next.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    for p in &mut positions {
+        *p *= radius;
+    }
+    let mut mesh = SurfaceMesh {
+        positions_in_body: positions,
+        triangles,
+    };
+    orient_outward(&mut mesh);
+    mesh
+}
+
+/// An axis-aligned box of the given full size, centred on the origin, each face split into
+/// `(subdivisions + 1)²` quads of two triangles.
+pub fn box_mesh(size: Vec3, subdivisions: u32) -> SurfaceMesh {
+    let s = subdivisions as i64 + 1;
+    let mut index: BTreeMap<[i64; 3], u32> = BTreeMap::new();
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    let mut vertex = |g: [i64; 3], positions: &mut Vec<Vec3>| -> u32 {
+        *index.entry(g).or_insert_with(|| {
+            let p = Vec3::new(
+                (g[0] as f64 / s as f64 - 0.5) * size.x,
+                (g[1] as f64 / s as f64 - 0.5) * size.y,
+                (g[2] as f64 / s as f64 - 0.5) * size.z,
+            );
+            positions.push(p);
+            (positions.len() - 1) as u32
+        })
+    };
+    for axis in 0..3 {
+        for side in [0, s] {
+            let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+            let mut normal = [0.0; 3];
+            normal[axis] = if side == 0 { -1.0 } else { 1.0 };
+            let normal = Vec3::from(normal);
+            for i in 0..s {
+                for j in 0..s {
+                    let corner = |di: i64, dj: i64| {
+                        let mut g = [0i64; 3];
+                        g[axis] = side;
+                        g[u] = i + di;
+                        g[w] = j + dj;
+                        g
+                    };
+                    let q = [
+                        vertex(corner(0, 0), &mut positions),
+                        vertex(corner(1, 0), &mut positions),
+                        vertex(corner(1, 1), &mut positions),
+                        vertex(corner(0, 1), &mut positions),
+                    ];
+                    for mut tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                        let [a, b, c] = tri.map(|k| positions[k as usize]);
+                        if (b - a).cross(&(c - a)).dot(&normal) < 0.0 {
+                            tri.swap(1, 2);
+                        }
+                        triangles.push(tri);
+                    }
+                }
+            }
+        }
+    }
+    SurfaceMesh {
+        positions_in_body: positions,
+        triangles,
+    }
+}
+
+/// Reads the triangles of every object in an OBJ file (faces with more corners are fanned into
+/// triangles; normals, texture coordinates and materials are ignored).
+pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
+    let obj_error = |reason: String| MeshError::Obj {
+        path: path.display().to_string(),
+        reason,
+    };
+    let file = std::fs::File::open(path).map_err(|e| obj_error(e.to_string()))?;
+    let mut reader = std::io::BufReader::new(file);
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ..Default::default()
+    };
+    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| obj_error(e.to_string()))?;
+    let mut mesh = SurfaceMesh {
+        positions_in_body: Vec::new(),
+        triangles: Vec::new(),
+    };
+    for model in &models {
+        let base = mesh.positions_in_body.len() as u32;
+        let m = &model.mesh;
+        mesh.positions_in_body.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+        );
+        mesh.triangles.extend(
+            m.indices
+                .chunks_exact(3)
+                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+        );
+    }
+    if mesh.triangles.is_empty() {
+        return Err(obj_error("no faces found".into()));
+    }
+    Ok(mesh)
+}
+
+fn orient_outward(mesh: &mut SurfaceMesh) {
+    if mesh.signed_volume() < 0.0 {
+        for tri in &mut mesh.triangles {
+            tri.swap(1, 2);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn icosphere_counts_follow_the_subdivision_series() {
+        for (s, n) in [(0, 12), (1, 42), (2, 162), (3, 642), (4, 2562)] {
+            let mut m = icosphere(0.1, s);
+            assert_eq!(m.vertex_count(), n);
+            m.validate().unwrap();
+            assert!(m.signed_volume() > 0.0);
+        }
+    }
+
+    #[test]
+    fn box_counts_and_volume() {
+        let mut m = box_mesh(Vec3::new(1.0, 2.0, 3.0), 0);
+        assert_eq!(m.vertex_count(), 8);
+        assert_eq!(m.triangles.len(), 12);
+        m.validate().unwrap();
+        assert!((m.signed_volume() - 6.0).abs() < 1e-12);
+        let mut m = box_mesh(Vec3::new(1.0, 1.0, 1.0), 2);
+        // 6 faces of 3x3 quads: 6*9*2 triangles; vertices on a 4x4x4 grid's boundary.
+        assert_eq!(m.triangles.len(), 108);
+        assert_eq!(m.vertex_count(), 4 * 4 * 4 - 2 * 2 * 2);
+        m.validate().unwrap();
+    }
+
+    #[test]
+    fn box_inertia_matches_the_closed_form() {
+        let (x, y, z) = (1.0, 2.0, 3.0);
+        let m = box_mesh(Vec3::new(x, y, z), 1);
+        let inertia = m.solid_inertia_about_origin(12.0);
+        assert!((inertia[(0, 0)] - (y * y + z * z)).abs() < 1e-12);
+        assert!((inertia[(1, 1)] - (x * x + z * z)).abs() < 1e-12);
+        assert!((inertia[(2, 2)] - (x * x + y * y)).abs() < 1e-12);
+        assert!(inertia[(0, 1)].abs() < 1e-12);
+    }
+}

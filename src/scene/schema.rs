@@ -1,0 +1,108 @@
+//! The TOML schema of a scene file, as serde reads it. Values keep their spans so validation can say
+//! where a bad value is. Unknown keys are rejected by serde with their position.
+
+use serde::Deserialize;
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SceneFile {
+    pub world: Option<WorldSection>,
+    #[serde(default)]
+    pub body: Vec<Spanned<BodySection>>,
+    #[serde(default)]
+    pub obstacle: Vec<Spanned<ObstacleSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct WorldSection {
+    pub gravity: Option<Spanned<[f64; 3]>>,
+    pub dt: Option<Spanned<f64>>,
+    pub air_viscosity: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct BodySection {
+    pub name: Option<Spanned<String>>,
+    pub mesh: Option<Spanned<MeshSection>>,
+    pub position: Option<Spanned<[f64; 3]>>,
+    pub orientation: Option<Spanned<[f64; 4]>>,
+    pub velocity: Option<Spanned<[f64; 3]>>,
+    pub angular_velocity: Option<Spanned<[f64; 3]>>,
+    pub surface_mass: Option<Spanned<f64>>,
+    pub rigid_mass: Option<Spanned<f64>>,
+    pub surface_stiffness: Option<Spanned<f64>>,
+    pub surface_damping: Option<Spanned<f64>>,
+    pub link_stiffness: Option<Spanned<f64>>,
+    pub link_damping: Option<Spanned<f64>>,
+    pub air_viscosity: Option<Spanned<f64>>,
+    pub friction: Option<Spanned<f64>>,
+    pub fixed: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct MeshSection {
+    pub icosphere: Option<Spanned<IcosphereSection>>,
+    pub ellipsoid: Option<Spanned<EllipsoidSection>>,
+    #[serde(rename = "box")]
+    pub box_: Option<Spanned<BoxMeshSection>>,
+    pub obj: Option<Spanned<String>>,
+    pub scale: Option<Spanned<ScaleValue>>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum ScaleValue {
+    Uniform(f64),
+    PerAxis([f64; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct IcosphereSection {
+    pub radius: Spanned<f64>,
+    pub subdivisions: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct EllipsoidSection {
+    pub radii: Spanned<[f64; 3]>,
+    pub subdivisions: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct BoxMeshSection {
+    pub size: Spanned<[f64; 3]>,
+    pub subdivisions: Option<Spanned<u32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ObstacleSection {
+    pub name: Option<Spanned<String>>,
+    pub plane: Option<Spanned<PlaneSection>>,
+    #[serde(rename = "box")]
+    pub box_: Option<Spanned<BoxObstacleSection>>,
+    pub friction: Option<Spanned<f64>>,
+    pub static_friction: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct PlaneSection {
+    pub point: Option<Spanned<[f64; 3]>>,
+    pub normal: Spanned<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct BoxObstacleSection {
+    pub center: Option<Spanned<[f64; 3]>>,
+    pub size: Spanned<[f64; 3]>,
+    pub orientation: Option<Spanned<[f64; 4]>>,
+}

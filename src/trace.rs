@@ -1,0 +1,54 @@
+//! The CSV trace of a headless run: one row per traced tick per body, header first.
+//!
+//! Numbers are written in Rust's shortest round-trip form, so two identical runs give identical bytes.
+
+use std::io::Write;
+
+use crate::world::World;
+
+/// The trace header.
+pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap";
+
+/// Writes the header line.
+pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
+    writeln!(out, "{TRACE_HEADER}")
+}
+
+/// Writes one row per body for the world's current tick. `min_obstacle_gap` is empty without obstacles.
+pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<()> {
+    for body in &world.bodies {
+        let com = body.surface_centre_of_mass();
+        let v = body.surface_centre_of_mass_velocity();
+        let r = &body.rigid;
+        let q = r.world_from_body.quaternion();
+        let gap = world
+            .min_obstacle_gap(body)
+            .map_or(String::new(), |g| g.to_string());
+        writeln!(
+            out,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            world.tick,
+            world.time(),
+            body.name,
+            com.x,
+            com.y,
+            com.z,
+            r.position_in_world.x,
+            r.position_in_world.y,
+            r.position_in_world.z,
+            q.w,
+            q.i,
+            q.j,
+            q.k,
+            v.x,
+            v.y,
+            v.z,
+            body.kinetic_energy(),
+            body.total_mass(),
+            body.node_count(),
+            body.surface.triangles.len(),
+            gap
+        )?;
+    }
+    Ok(())
+}
