@@ -1,0 +1,41 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use palpa::scene::{Scene, parse_scene};
+
+/// Repository root (where Cargo.toml is).
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `../shared` beside the repository, or `None` (with a message) when it is absent and not required.
+/// Under `PALPA_REQUIRE_SHARED=1` (set by `.ci/run`) its absence fails the test.
+pub fn shared_dir() -> Option<PathBuf> {
+    let dir = repo_root().join("../shared");
+    if dir.join("data").is_dir() {
+        return Some(dir);
+    }
+    if std::env::var("PALPA_REQUIRE_SHARED").is_ok_and(|v| v == "1") {
+        panic!(
+            "PALPA_REQUIRE_SHARED=1 but {} is missing: the shared test data must sit beside the repository",
+            dir.display()
+        );
+    }
+    eprintln!(
+        "SKIPPED: {} is absent (a fresh clone without the shared test data)",
+        dir.display()
+    );
+    None
+}
+
+/// Parses scene text as if it were a file in the repository root.
+pub fn scene(text: &str) -> Scene {
+    parse_scene(text, "test.toml", &repo_root()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Parses scene text from a directory.
+pub fn scene_in(text: &str, dir: &Path) -> Scene {
+    parse_scene(text, "test.toml", dir).unwrap_or_else(|e| panic!("{e}"))
+}
