@@ -45,7 +45,7 @@ pub enum MeshError {
     },
     /// A triangle has (almost) no area: repeated or collinear corners.
     #[error(
-        "triangle {triangle} (vertices {a}, {b}, {c}) is degenerate: area {area:e} m² for a longest edge of {longest:e} m"
+        "triangle {triangle} (vertices {a}, {b}, {c}, 0-based) is degenerate: area {area:e} m² for a longest edge of {longest:e} m"
     )]
     Degenerate {
         /// Offending triangle.
@@ -63,7 +63,7 @@ pub enum MeshError {
     },
     /// An edge is not shared by exactly two triangles: the surface has a hole or a fin.
     #[error(
-        "the mesh is not a closed manifold: edge ({a}, {b}) is used by {count} triangle(s), expected 2"
+        "the mesh is not a closed manifold: the edge between vertices {a} and {b} (0-based) is used by {count} triangle(s), expected 2"
     )]
     NotClosed {
         /// Edge end.
@@ -75,7 +75,7 @@ pub enum MeshError {
     },
     /// Two triangles traverse an edge in the same direction: the orientation is inconsistent.
     #[error(
-        "the mesh is not consistently oriented: edge {a} -> {b} is used in the same direction by two triangles"
+        "the mesh is not consistently oriented: the edge from vertex {a} to {b} (0-based) is used in the same direction by two triangles"
     )]
     Inconsistent {
         /// Edge start.
@@ -84,7 +84,9 @@ pub enum MeshError {
         b: u32,
     },
     /// The triangles around a vertex do not form a single fan (two surfaces touching at a point).
-    #[error("the mesh is not a manifold at vertex {vertex}: its triangles form more than one fan")]
+    #[error(
+        "the mesh is not a manifold at vertex {vertex} (0-based): its triangles form more than one fan"
+    )]
     NonManifoldVertex {
         /// Offending vertex.
         vertex: u32,

@@ -1,0 +1,271 @@
+//! Bad scenes are errors that name the file, line and column and say what was expected — never a
+//! panic. Each case pins its message.
+
+mod common;
+
+use std::path::Path;
+
+use palpa::scene::parse_scene;
+
+fn error_in(text: &str, dir: &Path) -> String {
+    match parse_scene(text, "bad.toml", dir) {
+        Ok(_) => panic!("scene accepted:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn error_of(text: &str) -> String {
+    error_in(text, &common::repo_root())
+}
+
+const BODY: &str =
+    "[[body]]\nname = \"organ\"\nmesh = { icosphere = { radius = 0.05, subdivisions = 1 } }\n";
+
+#[test]
+fn toml_syntax_error_names_line_and_column() {
+    let e = error_of("[world]\ngravity = [0.0, 0.0, -9.81\ndt = 0.001\n");
+    // The parser notices the missing comma where the next line starts.
+    assert_eq!(
+        e,
+        "bad.toml:3:1: missing comma between array elements, expected `,`"
+    );
+}
+
+#[test]
+fn unknown_key_is_an_error_with_its_place() {
+    let e = error_of(&format!("{BODY}stiffnes = 3.0\n"));
+    assert!(
+        e.starts_with("bad.toml:4:1: unknown field `stiffnes`, expected one of"),
+        "{e}"
+    );
+    assert!(e.contains("`surface_stiffness`"), "{e}");
+    let e = error_of("[wrld]\n");
+    assert!(e.starts_with("bad.toml:1:2: unknown field `wrld`"), "{e}");
+}
+
+#[test]
+fn wrong_type_is_an_error_with_what_was_expected() {
+    let e = error_of(&format!("{BODY}surface_mass = \"heavy\"\n"));
+    assert!(
+        e.starts_with("bad.toml:4:16: invalid type: string \"heavy\", expected f64"),
+        "{e}"
+    );
+    let e = error_of(&format!("{BODY}position = [0.0, 1.0]\n"));
+    assert!(e.starts_with("bad.toml:4:12: "), "{e}");
+    assert!(
+        e.contains("expected an array of length 3") || e.contains("length 3"),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_positive_mass_and_stiffness_are_errors() {
+    let e = error_of(&format!("{BODY}surface_mass = -1.0\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:16: `surface_mass` must be a finite number > 0, found -1"
+    );
+    let e = error_of(&format!("{BODY}rigid_mass = 0.0\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:14: `rigid_mass` must be a finite number > 0, found 0"
+    );
+    let e = error_of(&format!("{BODY}link_stiffness = 0.0\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:18: `link_stiffness` must be a finite number > 0, found 0"
+    );
+    let e = error_of(&format!("{BODY}surface_stiffness = nan\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:21: `surface_stiffness` must be a finite number > 0, found NaN"
+    );
+    let e = error_of(&format!("{BODY}link_damping = -0.1\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:16: `link_damping` must be a finite number ≥ 0, found -0.1"
+    );
+    let e = error_of("[world]\ndt = 0.0\n");
+    assert_eq!(e, "bad.toml:2:6: `dt` must be a finite number > 0, found 0");
+}
+
+#[test]
+fn zero_plane_normal_is_an_error() {
+    let e = error_of(
+        "[[obstacle]]\nname = \"floor\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 0.0] }\n",
+    );
+    assert_eq!(e, "bad.toml:3:45: `normal` must be a non-zero vector");
+}
+
+#[test]
+fn obstacle_needs_exactly_one_shape_and_sane_friction() {
+    let e = error_of("[[obstacle]]\nname = \"floor\"\nfriction = 0.3\n");
+    assert!(
+        e.starts_with("bad.toml:1:1: obstacle `floor` must have exactly one of"),
+        "{e}"
+    );
+    let e = error_of(
+        "[[obstacle]]\nplane = { normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.2\n",
+    );
+    assert_eq!(
+        e,
+        "bad.toml:4:19: `static_friction` (0.2) must be at least `friction` (0.5)"
+    );
+    let e = error_of("[[obstacle]]\nbox = { size = [1.0, 0.0, 1.0] }\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:16: `size` must be three finite numbers > 0, found [1.0, 0.0, 1.0]"
+    );
+}
+
+#[test]
+fn bad_quaternion_is_an_error() {
+    let e = error_of(&format!("{BODY}orientation = [1.0, 1.0, 0.0, 0.0]\n"));
+    assert!(
+        e.starts_with("bad.toml:4:15: `orientation` must be a unit quaternion [w, x, y, z]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mesh_must_be_exactly_one_kind_with_valid_sizes() {
+    let e = error_of(
+        "[[body]]\nmesh = { icosphere = { radius = 0.1 }, box = { size = [1.0, 1.0, 1.0] } }\n",
+    );
+    assert!(
+        e.starts_with("bad.toml:2:8: `mesh` must have exactly one of"),
+        "{e}"
+    );
+    let e = error_of("[[body]]\nmesh = { icosphere = { radius = 0.0 } }\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:33: `radius` must be a finite number > 0, found 0"
+    );
+    let e = error_of("[[body]]\nname = \"x\"\n");
+    assert_eq!(e, "bad.toml:1:1: body `x` needs a `mesh`");
+    let e = error_of("[[body]]\nmesh = { icosphere = { radius = 0.1, subdivisions = 12 } }\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:53: `subdivisions` must be at most 7, found 12"
+    );
+}
+
+#[test]
+fn duplicate_names_are_errors() {
+    let e = error_of(&format!("{BODY}{BODY}"));
+    assert_eq!(e, "bad.toml:5:8: duplicate body name `organ`");
+}
+
+/// Writes an OBJ file into a fresh directory and returns the directory.
+fn obj_dir(name: &str, obj: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("palpa-bad-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    dir
+}
+
+const CUBE_VERTICES: &str =
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
+const CUBE_FACES: [&str; 12] = [
+    "f 1 3 2", "f 1 4 3", "f 5 6 7", "f 5 7 8", "f 1 2 6", "f 1 6 5", "f 2 3 7", "f 2 7 6",
+    "f 3 4 8", "f 3 8 7", "f 4 1 5", "f 4 5 8",
+];
+const OBJ_BODY: &str = "[[body]]\nmesh = { obj = \"m.obj\", scale = 0.1 }\n";
+
+#[test]
+fn a_closed_obj_cube_loads() {
+    let dir = obj_dir(
+        "cube",
+        &format!("{CUBE_VERTICES}{}\n", CUBE_FACES.join("\n")),
+    );
+    let scene = parse_scene(OBJ_BODY, "ok.toml", &dir).unwrap();
+    assert_eq!(scene.bodies[0].mesh.vertex_count(), 8);
+    // Re-centred on the surface centre and scaled: the cube spans ±0.05 m.
+    let max_x = scene.bodies[0]
+        .mesh
+        .positions_in_body
+        .iter()
+        .map(|p| p.x)
+        .fold(f64::MIN, f64::max);
+    assert!((max_x - 0.05).abs() < 1e-12);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn obj_with_a_hole_is_not_a_closed_manifold() {
+    let dir = obj_dir(
+        "hole",
+        &format!("{CUBE_VERTICES}{}\n", CUBE_FACES[..11].join("\n")),
+    );
+    let e = error_in(OBJ_BODY, &dir);
+    assert_eq!(
+        e,
+        "bad.toml:2:8: mesh (obj m.obj): the mesh is not a closed manifold: the edge between vertices 3 and 7 (0-based) is used by 1 triangle(s), expected 2"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn obj_with_a_flipped_face_is_inconsistently_oriented() {
+    let mut faces = CUBE_FACES.to_vec();
+    faces[0] = "f 1 2 3";
+    let dir = obj_dir("flip", &format!("{CUBE_VERTICES}{}\n", faces.join("\n")));
+    let e = error_in(OBJ_BODY, &dir);
+    assert!(
+        e.starts_with("bad.toml:2:8: mesh (obj m.obj): the mesh is not consistently oriented"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn obj_with_a_degenerate_triangle_is_an_error() {
+    // A closed tetrahedron-like shape whose one triangle has three collinear corners.
+    let obj = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 1 1 0\nv 1 0.5 1\n\
+               f 1 2 3\nf 1 3 4\nf 1 5 2\nf 2 5 3\nf 3 5 4\nf 4 5 1\n";
+    let dir = obj_dir("degenerate", obj);
+    let e = error_in(OBJ_BODY, &dir);
+    assert!(
+        e.starts_with(
+            "bad.toml:2:8: mesh (obj m.obj): triangle 0 (vertices 0, 1, 2, 0-based) is degenerate"
+        ),
+        "{e}"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn obj_touching_itself_at_a_vertex_is_not_a_manifold() {
+    // Two tetrahedra sharing only vertex 1.
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv -1 0 0\nv 0 -1 0\nv 0 0 -1\n\
+               f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n\
+               f 1 5 6\nf 1 7 5\nf 1 6 7\nf 5 7 6\n";
+    let dir = obj_dir("pinch", obj);
+    let e = error_in(OBJ_BODY, &dir);
+    assert_eq!(
+        e,
+        "bad.toml:2:8: mesh (obj m.obj): the mesh is not a manifold at vertex 0 (0-based): its triangles form more than one fan"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn missing_obj_file_is_an_error_at_the_path() {
+    let e = error_of("[[body]]\nmesh = { obj = \"no/such/file.obj\" }\n");
+    assert!(
+        e.starts_with("bad.toml:2:16: mesh: cannot read OBJ file "),
+        "{e}"
+    );
+    assert!(e.contains("no/such/file.obj"), "{e}");
+}
+
+#[test]
+fn missing_scene_file_is_an_error() {
+    let e = palpa::scene::load_scene(Path::new("no/such/scene.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("no/such/scene.toml: cannot read the scene file:"),
+        "{e}"
+    );
+}

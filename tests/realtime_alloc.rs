@@ -1,0 +1,72 @@
+//! Real time: after warm-up, a step allocates nothing. A counting global allocator watches the heap
+//! while the world steps scenes with every system of the core model switched on.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use palpa::scene::load_scene;
+use palpa::world::World;
+
+struct Counting;
+
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::SeqCst) {
+            ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::SeqCst) {
+            ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn a_step_allocates_nothing_after_warm_up() {
+    for scene in [
+        "scenes/organ.toml",
+        "scenes/inclined_plane.toml",
+        "scenes/table_rest.toml",
+    ] {
+        let scene = load_scene(&common::repo_root().join(scene)).unwrap();
+        let mut world = World::from_scene(&scene);
+        for _ in 0..10 {
+            world.step();
+        }
+        ALLOCATIONS.store(0, Ordering::SeqCst);
+        COUNTING.store(true, Ordering::SeqCst);
+        for _ in 0..1000 {
+            world.step();
+        }
+        COUNTING.store(false, Ordering::SeqCst);
+        let count = ALLOCATIONS.load(Ordering::SeqCst);
+        // The counter itself works: building a world allocates.
+        COUNTING.store(true, Ordering::SeqCst);
+        let again = World::from_scene(&scene);
+        COUNTING.store(false, Ordering::SeqCst);
+        assert!(
+            ALLOCATIONS.load(Ordering::SeqCst) > count,
+            "the counting allocator counts"
+        );
+        assert_eq!(
+            count, 0,
+            "{}: {count} allocations in 1000 steps",
+            scene.name
+        );
+        drop(again);
+    }
+}
