@@ -1,1 +1,57 @@
-fn main() {}
+//! One step of the paper's model for icosphere bodies of 642, 2 562 and 10 242 nodes resting on a
+//! table (forces, integration, obstacle contact and friction, rigid component), single-threaded.
+//! Target: under 100 µs per step for 10 242 nodes on one core of the CI machine.
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use palpa::scene::parse_scene;
+use palpa::world::World;
+use std::hint::black_box;
+use std::path::Path;
+
+/// A body on a table, its surface mass growing with the node count so the explicit scheme stays
+/// stable at 1 ms (the bound of `palpa check`), warmed up until it rests in contact.
+fn resting_world(subdivisions: u32) -> World {
+    let nodes = 10 * 4u64.pow(subdivisions) + 2;
+    let surface_mass = 0.2 * nodes as f64 / 642.0;
+    let text = format!(
+        r#"
+        [[body]]
+        name = "organ"
+        mesh = {{ icosphere = {{ radius = 0.05, subdivisions = {subdivisions} }} }}
+        position = [0.0, 0.0, 0.05]
+        surface_mass = {surface_mass}
+        rigid_mass = 1.0
+        [[obstacle]]
+        name = "table"
+        plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+        friction = 0.4
+        "#
+    );
+    let scene = parse_scene(&text, "bench.toml", Path::new(".")).expect("bench scene");
+    let mut world = World::from_scene(&scene);
+    assert!(world.stability_margins()[0].margin > 0.0);
+    for _ in 0..200 {
+        world.step();
+    }
+    assert!(world.bodies[0].is_finite());
+    world
+}
+
+fn bench_step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step");
+    for subdivisions in [3, 4, 5] {
+        let mut world = resting_world(subdivisions);
+        let nodes = world.bodies[0].node_count();
+        group.throughput(Throughput::Elements(nodes as u64));
+        group.bench_function(BenchmarkId::new("icosphere_on_table", nodes), |b| {
+            b.iter(|| {
+                world.step();
+                black_box(&world.bodies[0].surface.position_in_world[0]);
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_step);
+criterion_main!(benches);
