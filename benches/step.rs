@@ -53,5 +53,27 @@ fn bench_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_step);
+/// The stages of one step, separately, on the 10 242-node body: where the time goes.
+fn bench_stages(c: &mut Criterion) {
+    use palpa::contact::obstacle::resolve_nodes_against_obstacles;
+    use palpa::dynamics::forces::accumulate_body_forces;
+    use palpa::dynamics::integrate::integrate_nodes_symplectic;
+    let mut group = c.benchmark_group("stage_10242");
+    let mut world = resting_world(5);
+    let gravity = world.params.gravity;
+    let dt = world.params.dt;
+    group.bench_function("forces", |b| {
+        b.iter(|| accumulate_body_forces(&mut world.bodies[0], &gravity))
+    });
+    group.bench_function("integrate", |b| {
+        b.iter(|| integrate_nodes_symplectic(&mut world.bodies[0].surface, dt))
+    });
+    let obstacles = world.obstacles.clone();
+    group.bench_function("obstacle_contact", |b| {
+        b.iter(|| resolve_nodes_against_obstacles(&mut world.bodies[0].surface, &obstacles, dt))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_stages);
 criterion_main!(benches);

@@ -10,10 +10,10 @@
 
 use crate::Vec3;
 use crate::body::Surface;
-use crate::collision::obstacle::Obstacle;
+use crate::collision::obstacle::{ContactPlane, Obstacle, ObstacleShape};
 
-/// Resolves every node of `surface` against every obstacle; returns how many node–obstacle contacts
-/// were found this step.
+/// Resolves every node of `surface` against every obstacle (obstacles in scene order, each node
+/// against them in that order); returns how many node–obstacle contacts were found this step.
 pub fn resolve_nodes_against_obstacles(
     surface: &mut Surface,
     obstacles: &[Obstacle],
@@ -21,38 +21,70 @@ pub fn resolve_nodes_against_obstacles(
 ) -> usize {
     let mut contacts = 0;
     let n = surface.position_in_world.len();
-    for i in 0..n {
-        let start = surface.position_in_world[i];
-        for obstacle in obstacles {
-            let end = surface.next_position_in_world[i];
-            let Some(plane) = obstacle.shape.contact_plane(&start, &end) else {
-                continue;
-            };
-            contacts += 1;
-            let normal = plane.normal_in_world;
-            let mut velocity = surface.velocity_in_world[i];
-            let normal_speed = velocity.dot(&normal);
-            if normal_speed < 0.0 {
-                let normal_dv = -normal_speed;
-                velocity += normal * normal_dv;
-                velocity = apply_coulomb_friction(
-                    velocity,
-                    &normal,
-                    normal_dv,
-                    obstacle.static_friction,
-                    obstacle.friction,
-                );
-                surface.velocity_in_world[i] = velocity;
+    for obstacle in obstacles {
+        match &obstacle.shape {
+            // The common case gets a tight loop: one dot product per node.
+            ObstacleShape::Plane {
+                point_in_world,
+                normal_in_world,
+            } => {
+                let plane = ContactPlane {
+                    normal_in_world: *normal_in_world,
+                    point_in_world: *point_in_world,
+                };
+                for i in 0..n {
+                    if plane.signed_distance(&surface.next_position_in_world[i]) < 0.0 {
+                        resolve_node(surface, i, &plane, obstacle, dt);
+                        contacts += 1;
+                    }
+                }
             }
-            let mut end = start + velocity * dt;
-            let depth = plane.signed_distance(&end);
-            if depth < 0.0 {
-                end -= normal * depth;
+            shape => {
+                for i in 0..n {
+                    let start = surface.position_in_world[i];
+                    let end = surface.next_position_in_world[i];
+                    if let Some(plane) = shape.contact_plane(&start, &end) {
+                        resolve_node(surface, i, &plane, obstacle, dt);
+                        contacts += 1;
+                    }
+                }
             }
-            surface.next_position_in_world[i] = end;
         }
     }
     contacts
+}
+
+/// Node `i` ends the step below `plane`: inelastic normal response, Coulomb friction, end position
+/// recomputed from the corrected velocity and projected onto the surface.
+fn resolve_node(
+    surface: &mut Surface,
+    i: usize,
+    plane: &ContactPlane,
+    obstacle: &Obstacle,
+    dt: f64,
+) {
+    let normal = plane.normal_in_world;
+    let start = surface.position_in_world[i];
+    let mut velocity = surface.velocity_in_world[i];
+    let normal_speed = velocity.dot(&normal);
+    if normal_speed < 0.0 {
+        let normal_dv = -normal_speed;
+        velocity += normal * normal_dv;
+        velocity = apply_coulomb_friction(
+            velocity,
+            &normal,
+            normal_dv,
+            obstacle.static_friction,
+            obstacle.friction,
+        );
+        surface.velocity_in_world[i] = velocity;
+    }
+    let mut end = start + velocity * dt;
+    let depth = plane.signed_distance(&end);
+    if depth < 0.0 {
+        end -= normal * depth;
+    }
+    surface.next_position_in_world[i] = end;
 }
 
 /// Coulomb friction on a velocity whose normal part was just cancelled by a normal velocity change

@@ -49,22 +49,28 @@ pub fn accumulate_body_forces(body: &mut Body, gravity: &Vec3) {
     rigid.force_in_world += reaction_force;
     rigid.torque_in_world += reaction_torque;
 
-    // Edge springs: k (|d| − L) u + c ((v_b − v_a)·u) u on a, the opposite on b.
-    let x = &surface.position_in_world;
-    let v = &surface.velocity_in_world;
-    let f = &mut surface.force_in_world;
-    for e in 0..edges.a.len() {
-        let (a, b) = (edges.a[e] as usize, edges.b[e] as usize);
+    // Edge springs: k (|d| − L) u + c ((v_b − v_a)·u) u on a, the opposite on b, with d = x_b − x_a
+    // and u = d / |d|; written as d · (magnitude / |d|) so one division serves both.
+    let x = &surface.position_in_world[..];
+    let v = &surface.velocity_in_world[..];
+    let f = &mut surface.force_in_world[..];
+    let ends = edges.a.iter().zip(&edges.b);
+    let constants = edges
+        .rest_length
+        .iter()
+        .zip(&edges.stiffness)
+        .zip(&edges.damping);
+    for ((&a, &b), ((&rest, &k), &c)) in ends.zip(constants) {
+        let (a, b) = (a as usize, b as usize);
         let d = x[b] - x[a];
         let length = d.norm();
         if length <= f64::MIN_POSITIVE {
             // Coincident ends: no direction to push along.
             continue;
         }
-        let u = d / length;
-        let magnitude = edges.stiffness[e] * (length - edges.rest_length[e])
-            + edges.damping[e] * (v[b] - v[a]).dot(&u);
-        let force = u * magnitude;
+        let inverse_length = 1.0 / length;
+        let magnitude = k * (length - rest) + c * (v[b] - v[a]).dot(&d) * inverse_length;
+        let force = d * (magnitude * inverse_length);
         f[a] += force;
         f[b] -= force;
     }

@@ -463,6 +463,7 @@ impl Ctx<'_> {
         mesh.validate()
             .map_err(|e| self.error(section.span(), format!("mesh ({source}): {e}")))?;
         mesh.recentre_on_surface_centre();
+        mesh.reorder_for_locality();
         Ok((mesh, source))
     }
 
