@@ -14,6 +14,19 @@
 //! - [`contact`]: node–obstacle contact with Coulomb friction.
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
 //! - [`trace`]: the CSV trace of a run.
+//!
+//! ```
+//! use palpa::{World, scene::default_scene};
+//!
+//! // The embedded default scene: a soft organ dropped onto a table.
+//! let mut world = World::from_scene(&default_scene());
+//! for _ in 0..100 {
+//!     world.step(); // 1 ms each, no allocation
+//! }
+//! let organ = &world.bodies[0];
+//! assert!(organ.is_finite());
+//! assert!(world.min_obstacle_gap(organ).unwrap() >= 0.0); // never below the table
+//! ```
 #![warn(missing_docs)]
 
 pub mod body;
