@@ -10,8 +10,9 @@
 //! - [`scene`]: TOML scene files, meshes (primitives, OBJ), validation with file:line:column errors.
 //! - [`body`]: the surface (structure of arrays), edge springs, links, rigid component.
 //! - [`dynamics`]: forces, integration, stability analysis.
-//! - [`collision`]: obstacle geometry.
-//! - [`contact`]: node–obstacle contact with Coulomb friction.
+//! - [`tool`]: rigid tools (probe, instrument, grasper, blade) and their scripted or external poses.
+//! - [`collision`]: obstacle geometry, continuous detection against tools.
+//! - [`contact`]: node–obstacle and node–tool contact with Coulomb friction; force feedback.
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
 //! - [`trace`]: the CSV trace of a run.
 //!
@@ -34,6 +35,7 @@ pub mod collision;
 pub mod contact;
 pub mod dynamics;
 pub mod scene;
+pub mod tool;
 pub mod trace;
 pub mod world;
 

@@ -2,14 +2,16 @@
 //! scene and explains its stability under the paper's scheme. Without a scene path both use the
 //! embedded default scene.
 
-use std::io::{BufWriter, Write};
+use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use palpa::scene::{Scene, default_scene, load_scene};
-use palpa::trace::{write_trace_header, write_trace_rows};
+use palpa::trace::{
+    write_feedback_header, write_feedback_rows, write_trace_header, write_trace_rows,
+};
 use palpa::world::World;
 
 #[derive(Parser)]
@@ -38,6 +40,9 @@ enum Command {
         /// Trace every N-th tick (tick 0 is always traced).
         #[arg(long, default_value_t = 1)]
         trace_every: u64,
+        /// Write the tools' feedback here, one row per tick per tool.
+        #[arg(long)]
+        feedback: Option<PathBuf>,
     },
     /// Validate a scene and print a summary: bodies, systems switched on, stability margin.
     Check {
@@ -54,7 +59,14 @@ fn main() -> Result<()> {
             duration,
             trace,
             trace_every,
-        } => run(scene.as_deref(), duration, trace.as_deref(), trace_every),
+            feedback,
+        } => run(
+            scene.as_deref(),
+            duration,
+            trace.as_deref(),
+            trace_every,
+            feedback.as_deref(),
+        ),
         Command::Check { scene } => check(scene.as_deref()),
     }
 }
@@ -66,7 +78,19 @@ fn scene_from(path: Option<&Path>) -> Result<Scene> {
     }
 }
 
-fn run(path: Option<&Path>, duration: f64, trace: Option<&Path>, trace_every: u64) -> Result<()> {
+fn create(path: &Path) -> Result<BufWriter<std::fs::File>> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    Ok(BufWriter::new(file))
+}
+
+fn run(
+    path: Option<&Path>,
+    duration: f64,
+    trace: Option<&Path>,
+    trace_every: u64,
+    feedback: Option<&Path>,
+) -> Result<()> {
     if !(duration.is_finite() && duration >= 0.0) {
         bail!("--duration must be a finite number of seconds ≥ 0, found {duration}");
     }
@@ -78,11 +102,17 @@ fn run(path: Option<&Path>, duration: f64, trace: Option<&Path>, trace_every: u6
     let ticks = (duration / world.params.dt).round() as u64;
     let mut out = match trace {
         Some(p) => {
-            let file = std::fs::File::create(p)
-                .with_context(|| format!("cannot create trace file {}", p.display()))?;
-            let mut w = BufWriter::new(file);
+            let mut w = create(p)?;
             write_trace_header(&mut w)?;
             write_trace_rows(&mut w, &world)?;
+            Some(w)
+        }
+        None => None,
+    };
+    let mut feedback_out = match feedback {
+        Some(p) => {
+            let mut w = create(p)?;
+            write_feedback_header(&mut w)?;
             Some(w)
         }
         None => None,
@@ -95,10 +125,15 @@ fn run(path: Option<&Path>, duration: f64, trace: Option<&Path>, trace_every: u6
         {
             write_trace_rows(w, &world)?;
         }
+        if let Some(w) = feedback_out.as_mut() {
+            write_feedback_rows(w, &world)?;
+        }
     }
     let wall = started.elapsed().as_secs_f64();
-    if let Some(mut w) = out {
-        w.flush()?;
+    for w in [out, feedback_out].into_iter().flatten() {
+        w.into_inner()
+            .map_err(|e| anyhow::anyhow!("cannot write a trace: {}", e.error()))?
+            .sync_all()?;
     }
     println!(
         "{}: {} ticks ({} s simulated) in {:.3} s wall ({:.1}x real time, {:.1} µs/tick)",

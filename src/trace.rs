@@ -7,11 +7,43 @@ use std::io::Write;
 use crate::world::World;
 
 /// The trace header.
-pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap";
+pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration";
 
 /// Writes the header line.
 pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
     writeln!(out, "{TRACE_HEADER}")
+}
+
+/// The feedback trace header.
+pub const FEEDBACK_HEADER: &str = "tick,time,tool,fx,fy,fz,tx,ty,tz,contacts,clamped";
+
+/// Writes the feedback header line.
+pub fn write_feedback_header(out: &mut impl Write) -> std::io::Result<()> {
+    writeln!(out, "{FEEDBACK_HEADER}")
+}
+
+/// Writes one feedback row per tool for the world's current tick: the force (N) and torque about the
+/// tip (N·m) the tissue exerts on the tool, world frame, after the `max_force` clamp.
+pub fn write_feedback_rows(out: &mut impl Write, world: &World) -> std::io::Result<()> {
+    for tool in &world.tools {
+        let f = &tool.feedback;
+        writeln!(
+            out,
+            "{},{},{},{},{},{},{},{},{},{},{}",
+            world.tick,
+            world.time(),
+            tool.name,
+            f.force_in_world.x,
+            f.force_in_world.y,
+            f.force_in_world.z,
+            f.torque_in_world.x,
+            f.torque_in_world.y,
+            f.torque_in_world.z,
+            f.contacts,
+            f.clamped as u8
+        )?;
+    }
+    Ok(())
 }
 
 /// Writes one row per body for the world's current tick. `min_obstacle_gap` is empty without obstacles.
@@ -26,7 +58,7 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             .map_or(String::new(), |g| g.to_string());
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             world.tick,
             world.time(),
             body.name,
@@ -47,7 +79,8 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             body.total_mass(),
             body.node_count(),
             body.surface.triangles.len(),
-            gap
+            gap,
+            world.max_penetration(body)
         )?;
     }
     Ok(())

@@ -10,10 +10,24 @@ use crate::Vec3;
 use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
+use crate::contact::tool::{capture_new_contacts, hold_contact_nodes, push_out_of_tools};
 use crate::dynamics::forces::accumulate_body_forces;
-use crate::dynamics::integrate::{commit_positions, integrate_nodes_symplectic};
+use crate::dynamics::integrate::{
+    commit_positions, integrate_free_nodes_symplectic, integrate_nodes_symplectic,
+};
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
 use crate::scene::{Scene, WorldParams};
+use crate::tool::{Feedback, Tool};
+
+/// Scales a tool's feedback force down to its `max_force`, flagging it.
+fn clamp_feedback(tool: &mut Tool) {
+    let Some(max) = tool.max_force else { return };
+    let magnitude = tool.feedback.force_in_world.norm();
+    if magnitude > max {
+        tool.feedback.force_in_world *= max / magnitude;
+        tool.feedback.clamped = true;
+    }
+}
 
 /// Which systems the scene switches on.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -28,6 +42,8 @@ pub struct Systems {
     pub obstacle_friction: bool,
     /// Some body's rigid component is free to move.
     pub rigid_motion: bool,
+    /// There are tools: continuous detection against them, contact zones, friction, feedback.
+    pub tool_contact: bool,
 }
 
 impl Systems {
@@ -40,6 +56,10 @@ impl Systems {
             (self.air_viscosity, "air_viscosity"),
             (self.obstacle_contact, "obstacle_contact"),
             (self.obstacle_friction, "obstacle_friction"),
+            (self.tool_contact, "tool_ccd"),
+            (self.tool_contact, "tool_contact"),
+            (self.tool_contact, "tool_friction"),
+            (self.tool_contact, "feedback"),
         ] {
             if on {
                 names.push(name);
@@ -54,6 +74,10 @@ impl Systems {
 pub struct StepCounters {
     /// Node–obstacle contacts resolved.
     pub obstacle_contacts: usize,
+    /// Nodes that joined a tool's contact zone this step.
+    pub tool_captures: u32,
+    /// Nodes moved out of a tool by the final guard (two parts squeezing a node).
+    pub tool_push_outs: u32,
 }
 
 /// Everything simulated, and the step.
@@ -65,6 +89,10 @@ pub struct World {
     pub bodies: Vec<Body>,
     /// Fixed obstacles, in scene order.
     pub obstacles: Vec<Obstacle>,
+    /// Force each obstacle exerted on the bodies during the last step (N, world frame).
+    pub obstacle_reactions: Vec<Vec3>,
+    /// Rigid tools, in scene order.
+    pub tools: Vec<Tool>,
     /// Number of steps taken; simulated time is `tick × dt`.
     pub tick: u64,
     /// Counters of the last step.
@@ -79,6 +107,8 @@ impl World {
             params,
             bodies: Vec::new(),
             obstacles: Vec::new(),
+            obstacle_reactions: Vec::new(),
+            tools: Vec::new(),
             tick: 0,
             counters: StepCounters::default(),
             systems: Systems::default(),
@@ -99,6 +129,11 @@ impl World {
             ));
         }
         world.obstacles = scene.obstacles.clone();
+        world.tools = scene
+            .tools
+            .iter()
+            .map(|t| Tool::new(&t.name, t.shape.clone(), t.input.clone(), t.max_force))
+            .collect();
         world.assemble();
         world
     }
@@ -115,8 +150,15 @@ impl World {
         self.assemble();
     }
 
-    /// Decides which systems run from what the world holds.
+    /// Adds a tool (and re-decides which systems run).
+    pub fn add_tool(&mut self, tool: Tool) {
+        self.tools.push(tool);
+        self.assemble();
+    }
+
+    /// Decides which systems run from what the world holds, and sizes the per-obstacle buffers.
     fn assemble(&mut self) {
+        self.obstacle_reactions = vec![Vec3::zeros(); self.obstacles.len()];
         self.systems = Systems {
             gravity: self.params.gravity != Vec3::zeros(),
             air_viscosity: self.bodies.iter().any(|b| b.params.air_viscosity > 0.0),
@@ -126,6 +168,7 @@ impl World {
                 .iter()
                 .any(|o| o.friction > 0.0 || o.static_friction > 0.0),
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
+            tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
         };
     }
 
@@ -140,22 +183,67 @@ impl World {
     }
 
     /// Advances the world by one time step. Allocates nothing.
+    ///
+    /// Stages: tools move to their pose for the end of the tick; then per body forces → contact
+    /// nodes held, slid or released → free nodes integrated → continuous detection against the tools
+    /// → obstacle contact → tool guard → positions committed → rigid component; last, each tool's
+    /// feedback is clamped to its `max_force`.
     pub fn step(&mut self) {
         let dt = self.params.dt;
         let gravity = self.params.gravity;
         let mut counters = StepCounters::default();
+        let t_end = (self.tick + 1) as f64 * dt;
+        for tool in &mut self.tools {
+            tool.begin_tick(t_end);
+            tool.feedback = Feedback::default();
+        }
+        for reaction in &mut self.obstacle_reactions {
+            *reaction = Vec3::zeros();
+        }
+        let systems = self.systems;
         for body in &mut self.bodies {
             accumulate_body_forces(body, &gravity);
-            integrate_nodes_symplectic(&mut body.surface, dt);
-            if self.systems.obstacle_contact {
-                counters.obstacle_contacts +=
-                    resolve_nodes_against_obstacles(&mut body.surface, &self.obstacles, dt);
+            if systems.tool_contact {
+                hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
+                integrate_free_nodes_symplectic(&mut body.surface, dt);
+                counters.tool_captures +=
+                    capture_new_contacts(&mut body.surface, &mut self.tools, dt);
+            } else {
+                integrate_nodes_symplectic(&mut body.surface, dt);
+            }
+            if systems.obstacle_contact {
+                counters.obstacle_contacts += resolve_nodes_against_obstacles(
+                    &mut body.surface,
+                    &self.obstacles,
+                    &mut self.obstacle_reactions,
+                    dt,
+                );
+            }
+            if systems.tool_contact {
+                counters.tool_push_outs += push_out_of_tools(&mut body.surface, &self.tools, dt);
             }
             commit_positions(&mut body.surface);
             body.rigid.integrate(dt);
         }
+        for tool in &mut self.tools {
+            clamp_feedback(tool);
+        }
         self.counters = counters;
         self.tick += 1;
+    }
+
+    /// Deepest penetration of any node of `body` into an obstacle or a tool (m), 0 when none.
+    pub fn max_penetration(&self, body: &Body) -> f64 {
+        let mut deepest: f64 = 0.0;
+        for x in &body.surface.position_in_world {
+            for o in &self.obstacles {
+                deepest = deepest.max(-o.shape.signed_distance(x));
+            }
+            for t in &self.tools {
+                deepest = deepest.max(-t.signed_distance(x).0);
+            }
+        }
+        deepest
     }
 
     /// Smallest signed distance of any node of `body` to any obstacle (m); `None` without obstacles.

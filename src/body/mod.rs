@@ -10,6 +10,7 @@ mod rigid;
 pub use rigid::RigidComponent;
 
 use crate::Vec3;
+use crate::contact::tool::ToolContact;
 use crate::scene::mesh::SurfaceMesh;
 use nalgebra::UnitQuaternion;
 
@@ -82,6 +83,8 @@ pub struct Surface {
     pub link_damping: Vec<f64>,
     /// Triangles, counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
+    /// Which tool holds each node, if any (the contact zone).
+    pub tool_contact: Vec<ToolContact>,
 }
 
 /// Edge springs, structure of arrays. Index `e` is edge `e` in every array.
@@ -224,6 +227,7 @@ impl Body {
             link_stiffness: vec![params.link_stiffness; n],
             link_damping: vec![params.link_damping; n],
             triangles: mesh.triangles.clone(),
+            tool_contact: vec![ToolContact::default(); n],
         };
         Self {
             name: name.to_string(),

@@ -1,3 +1,4 @@
-//! Collision geometry: fixed obstacles (continuous detection between moving surfaces comes with tools).
+//! Collision geometry: fixed obstacles and continuous detection against tools.
 
 pub mod obstacle;
+pub mod tool;

@@ -1,3 +1,4 @@
-//! Contact responses: nodes against fixed obstacles, with Coulomb friction.
+//! Contact responses: nodes against fixed obstacles and against tools, with Coulomb friction.
 
 pub mod obstacle;
+pub mod tool;

@@ -14,14 +14,18 @@ use crate::collision::obstacle::{ContactPlane, Obstacle, ObstacleShape};
 
 /// Resolves every node of `surface` against every obstacle (obstacles in scene order, each node
 /// against them in that order); returns how many node–obstacle contacts were found this step.
+///
+/// `reactions[k]` accumulates the force obstacle `k` exerts on the nodes (N): the momentum its contacts
+/// changed, divided by the step.
 pub fn resolve_nodes_against_obstacles(
     surface: &mut Surface,
     obstacles: &[Obstacle],
+    reactions: &mut [Vec3],
     dt: f64,
 ) -> usize {
     let mut contacts = 0;
     let n = surface.position_in_world.len();
-    for obstacle in obstacles {
+    for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
         match &obstacle.shape {
             // The common case gets a tight loop: one dot product per node.
             ObstacleShape::Plane {
@@ -34,7 +38,7 @@ pub fn resolve_nodes_against_obstacles(
                 };
                 for i in 0..n {
                     if plane.signed_distance(&surface.next_position_in_world[i]) < 0.0 {
-                        resolve_node(surface, i, &plane, obstacle, dt);
+                        *reaction += resolve_node(surface, i, &plane, obstacle, dt);
                         contacts += 1;
                     }
                 }
@@ -44,7 +48,7 @@ pub fn resolve_nodes_against_obstacles(
                     let start = surface.position_in_world[i];
                     let end = surface.next_position_in_world[i];
                     if let Some(plane) = shape.contact_plane(&start, &end) {
-                        resolve_node(surface, i, &plane, obstacle, dt);
+                        *reaction += resolve_node(surface, i, &plane, obstacle, dt);
                         contacts += 1;
                     }
                 }
@@ -55,17 +59,19 @@ pub fn resolve_nodes_against_obstacles(
 }
 
 /// Node `i` ends the step below `plane`: inelastic normal response, Coulomb friction, end position
-/// recomputed from the corrected velocity and projected onto the surface.
+/// recomputed from the corrected velocity and projected onto the surface. Returns the contact force
+/// (N): the node's momentum change over the step.
 fn resolve_node(
     surface: &mut Surface,
     i: usize,
     plane: &ContactPlane,
     obstacle: &Obstacle,
     dt: f64,
-) {
+) -> Vec3 {
     let normal = plane.normal_in_world;
     let start = surface.position_in_world[i];
-    let mut velocity = surface.velocity_in_world[i];
+    let incoming = surface.velocity_in_world[i];
+    let mut velocity = incoming;
     let normal_speed = velocity.dot(&normal);
     if normal_speed < 0.0 {
         let normal_dv = -normal_speed;
@@ -85,6 +91,7 @@ fn resolve_node(
         end -= normal * depth;
     }
     surface.next_position_in_world[i] = end;
+    (velocity - incoming) * (surface.mass[i] / dt)
 }
 
 /// Coulomb friction on a velocity whose normal part was just cancelled by a normal velocity change

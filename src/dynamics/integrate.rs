@@ -6,10 +6,24 @@
 //! then swaps the two buffers.
 
 use crate::body::Surface;
+use crate::contact::tool::NO_TOOL;
 
 /// v += Δt F/m; x_next = x + Δt v, for every node.
 pub fn integrate_nodes_symplectic(surface: &mut Surface, dt: f64) {
     for i in 0..surface.position_in_world.len() {
+        let velocity = surface.velocity_in_world[i]
+            + surface.force_in_world[i] * (dt * surface.inverse_mass[i]);
+        surface.velocity_in_world[i] = velocity;
+        surface.next_position_in_world[i] = surface.position_in_world[i] + velocity * dt;
+    }
+}
+
+/// The same for the nodes no tool holds (the contact stage moves the others).
+pub fn integrate_free_nodes_symplectic(surface: &mut Surface, dt: f64) {
+    for i in 0..surface.position_in_world.len() {
+        if surface.tool_contact[i].tool != NO_TOOL {
+            continue;
+        }
         let velocity = surface.velocity_in_world[i]
             + surface.force_in_world[i] * (dt * surface.inverse_mass[i]);
         surface.velocity_in_world[i] = velocity;

@@ -18,6 +18,7 @@ use toml::Spanned;
 use crate::Vec3;
 use crate::body::{BodyParams, Placement};
 use crate::collision::obstacle::{Obstacle, ObstacleShape};
+use crate::tool::{Keyframe, ToolInput, ToolPose, ToolShape};
 use mesh::SurfaceMesh;
 use schema::*;
 
@@ -60,6 +61,19 @@ pub struct BodySpec {
     pub mesh_source: String,
 }
 
+/// A tool as the scene describes it.
+#[derive(Clone, Debug)]
+pub struct ToolSpec {
+    /// Unique name (letters, digits, `_`, `-`).
+    pub name: String,
+    /// Geometry.
+    pub shape: ToolShape,
+    /// Pose source.
+    pub input: ToolInput,
+    /// Device force limit (N).
+    pub max_force: Option<f64>,
+}
+
 /// A validated scene.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -73,6 +87,8 @@ pub struct Scene {
     pub bodies: Vec<BodySpec>,
     /// Obstacles, in file order.
     pub obstacles: Vec<Obstacle>,
+    /// Tools, in file order.
+    pub tools: Vec<ToolSpec>,
     /// Files the scene loaded (meshes), in load order.
     pub assets: Vec<PathBuf>,
 }
@@ -179,12 +195,26 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
         }
         obstacles.push(o);
     }
+    let mut tools: Vec<ToolSpec> = Vec::with_capacity(file.tool.len());
+    for (index, tool) in file.tool.iter().enumerate() {
+        let t = ctx.tool(tool, index)?;
+        if tools.iter().any(|o| o.name == t.name) {
+            let span = tool
+                .get_ref()
+                .name
+                .as_ref()
+                .map_or(tool.span(), |n| n.span());
+            return Err(ctx.error(span, format!("duplicate tool name `{}`", t.name)));
+        }
+        tools.push(t);
+    }
     Ok(Scene {
         name: name.to_string(),
         source: text.to_string(),
         world,
         bodies,
         obstacles,
+        tools,
         assets,
     })
 }
@@ -284,6 +314,149 @@ impl Ctx<'_> {
             ));
         }
         Ok(UnitQuaternion::from_quaternion(q))
+    }
+
+    /// A name from the file, or the default; names appear in traces and service names, so they are
+    /// kept to letters, digits, `_`, `-` and `.`.
+    fn name(&self, value: Option<&Spanned<String>>, default: String) -> Result<String, SceneError> {
+        let Some(v) = value else { return Ok(default) };
+        let name = v.get_ref();
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+        {
+            return Err(self.error(
+                v.span(),
+                format!("`name` must be non-empty and use only letters, digits, `_`, `-` and `.`, found {name:?}"),
+            ));
+        }
+        Ok(name.clone())
+    }
+
+    fn tool(&self, tool: &Spanned<ToolSection>, index: usize) -> Result<ToolSpec, SceneError> {
+        let t = tool.get_ref();
+        let name = self.name(t.name.as_ref(), format!("tool{index}"))?;
+        let Some(shape_section) = &t.shape else {
+            return Err(self.error(tool.span(), format!("tool `{name}` needs a `shape`")));
+        };
+        let s = shape_section.get_ref();
+        let given = [
+            s.sphere.is_some(),
+            s.capsule.is_some(),
+            s.grasper.is_some(),
+            s.blade.is_some(),
+        ];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(self.error(
+                shape_section.span(),
+                "`shape` must have exactly one of `sphere = { radius }`, `capsule = { radius, length }`, \
+                 `grasper = { jaw_length, radius, shaft_length }` or `blade = { length, thickness }`"
+                    .to_string(),
+            ));
+        }
+        let positive = |v: &Spanned<f64>, key: &str| self.number(Some(v), 0.0, key, Rule::Positive);
+        let shape = if let Some(sphere) = &s.sphere {
+            ToolShape::Sphere {
+                radius: positive(&sphere.get_ref().radius, "radius")?,
+            }
+        } else if let Some(capsule) = &s.capsule {
+            let c = capsule.get_ref();
+            ToolShape::Capsule {
+                radius: positive(&c.radius, "radius")?,
+                length: positive(&c.length, "length")?,
+            }
+        } else if let Some(grasper) = &s.grasper {
+            let g = grasper.get_ref();
+            ToolShape::Grasper {
+                jaw_length: positive(&g.jaw_length, "jaw_length")?,
+                radius: positive(&g.radius, "radius")?,
+                shaft_length: self.number(
+                    g.shaft_length.as_ref(),
+                    0.0,
+                    "shaft_length",
+                    Rule::NonNegative,
+                )?,
+            }
+        } else {
+            let b = s.blade.as_ref().expect("one shape was given").get_ref();
+            ToolShape::Blade {
+                length: positive(&b.length, "length")?,
+                thickness: positive(&b.thickness, "thickness")?,
+            }
+        };
+        let input_kind = t.input.as_ref().map(|i| (i.get_ref().as_str(), i.span()));
+        let input = match (input_kind, &t.script) {
+            (Some(("ipc", span)), Some(_)) => {
+                return Err(self.error(span, "`input = \"ipc\"` takes no `script`".to_string()));
+            }
+            (Some(("ipc", _)), None) => ToolInput::Ipc,
+            (None | Some(("script", _)), Some(script)) => ToolInput::Script(self.script(script)?),
+            (Some(("script", _)), None) | (None, None) => {
+                return Err(self.error(
+                    tool.span(),
+                    format!("tool `{name}` needs `input = \"ipc\"` or a `script`"),
+                ));
+            }
+            (Some((other, span)), _) => {
+                return Err(self.error(
+                    span,
+                    format!("`input` must be \"script\" or \"ipc\", found {other:?}"),
+                ));
+            }
+        };
+        let max_force = match &t.max_force {
+            None => None,
+            Some(v) => Some(self.number(Some(v), 0.0, "max_force", Rule::Positive)?),
+        };
+        Ok(ToolSpec {
+            name,
+            shape,
+            input,
+            max_force,
+        })
+    }
+
+    fn script(
+        &self,
+        script: &Spanned<Vec<Spanned<KeyframeSection>>>,
+    ) -> Result<Vec<Keyframe>, SceneError> {
+        let keys = script.get_ref();
+        if keys.is_empty() {
+            return Err(self.error(
+                script.span(),
+                "`script` needs at least one keyframe".to_string(),
+            ));
+        }
+        let mut out: Vec<Keyframe> = Vec::with_capacity(keys.len());
+        for key in keys {
+            let k = key.get_ref();
+            let t = *k.t.get_ref();
+            if !t.is_finite() {
+                return Err(self.error(k.t.span(), format!("`t` must be a finite time, found {t}")));
+            }
+            if let Some(previous) = out.last()
+                && t <= previous.t
+            {
+                return Err(self.error(
+                    k.t.span(),
+                    format!("keyframe times must increase: {t} follows {}", previous.t),
+                ));
+            }
+            let jaw = match &k.jaw {
+                None => out.last().map_or(0.0, |p| p.jaw),
+                Some(v) => self.number(Some(v), 0.0, "jaw", Rule::NonNegative)?,
+            };
+            out.push(Keyframe {
+                t,
+                pose: ToolPose {
+                    position_in_world: self.vector(Some(&k.position), Vec3::zeros(), "position")?,
+                    world_from_tool: self.orientation(k.orientation.as_ref(), "orientation")?,
+                },
+                jaw,
+            });
+        }
+        Ok(out)
     }
 
     fn body(

@@ -12,6 +12,8 @@ pub(super) struct SceneFile {
     pub body: Vec<Spanned<BodySection>>,
     #[serde(default)]
     pub obstacle: Vec<Spanned<ObstacleSection>>,
+    #[serde(default)]
+    pub tool: Vec<Spanned<ToolSection>>,
 }
 
 #[derive(Deserialize)]
@@ -105,4 +107,60 @@ pub(super) struct BoxObstacleSection {
     pub center: Option<Spanned<[f64; 3]>>,
     pub size: Spanned<[f64; 3]>,
     pub orientation: Option<Spanned<[f64; 4]>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ToolSection {
+    pub name: Option<Spanned<String>>,
+    pub shape: Option<Spanned<ToolShapeSection>>,
+    pub input: Option<Spanned<String>>,
+    pub script: Option<Spanned<Vec<Spanned<KeyframeSection>>>>,
+    pub max_force: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ToolShapeSection {
+    pub sphere: Option<Spanned<SphereSection>>,
+    pub capsule: Option<Spanned<CapsuleSection>>,
+    pub grasper: Option<Spanned<GrasperSection>>,
+    pub blade: Option<Spanned<BladeSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SphereSection {
+    pub radius: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CapsuleSection {
+    pub radius: Spanned<f64>,
+    pub length: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct GrasperSection {
+    pub jaw_length: Spanned<f64>,
+    pub radius: Spanned<f64>,
+    pub shaft_length: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct BladeSection {
+    pub length: Spanned<f64>,
+    pub thickness: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct KeyframeSection {
+    pub t: Spanned<f64>,
+    pub position: Spanned<[f64; 3]>,
+    pub orientation: Option<Spanned<[f64; 4]>>,
+    pub jaw: Option<Spanned<f64>>,
 }

@@ -1,0 +1,257 @@
+//! Tool–tissue contact as the paper states it (MODEL.md §4, paper §3.2): nodes in the contact zone
+//! take their position from the tool; the force on each is what the rest of the model exerts on it
+//! (springs, link, gravity, air), and the sum of those forces, with its moment about the tool's tip,
+//! is the feedback the device must render.
+//!
+//! Each tick, per body, after the forces are known:
+//! 1. [`hold_contact_nodes`]: a contact node whose force pulls it away from the tool is released (it is
+//!    then integrated as a free node). Otherwise Coulomb friction decides: it sticks (it stays at its
+//!    point of the tool, and feeds back its whole force) when the friction needed to keep it there is
+//!    inside the cone μ N, and otherwise slides along the tool surface, feeding back its normal force
+//!    plus the kinetic friction μ N along its slip.
+//! 2. The free nodes are integrated.
+//! 3. [`capture_new_contacts`]: continuous detection of each free node's trajectory against each tool
+//!    capsule's motion over the tick; a node that meets the tool joins the contact zone at the point
+//!    where it touched and ends the tick there.
+//! 4. [`push_out_of_tools`]: a last guard so that no node ends a tick inside a tool (only ever acts
+//!    when two parts of a tool squeeze a node).
+
+use crate::Vec3;
+use crate::body::Surface;
+use crate::collision::tool::{Aabb, lerp_capsule, time_of_impact_point_capsule};
+use crate::tool::{Tool, ToolPose};
+
+/// No tool: the node is free.
+pub const NO_TOOL: u32 = u32::MAX;
+
+/// Distance within which continuous detection reports contact (m).
+pub const CONTACT_TOLERANCE: f64 = 1e-9;
+
+/// The contact state of one surface node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolContact {
+    /// Tool index, or [`NO_TOOL`].
+    pub tool: u32,
+    /// Capsule part of that tool.
+    pub part: u32,
+    /// Where the node sits on the tool (m, tool frame).
+    pub point_in_tool: Vec3,
+}
+
+impl Default for ToolContact {
+    fn default() -> Self {
+        Self {
+            tool: NO_TOOL,
+            part: 0,
+            point_in_tool: Vec3::zeros(),
+        }
+    }
+}
+
+/// Accumulates one node's contribution to a tool's feedback.
+fn add_feedback(
+    tool: &mut Tool,
+    at: &Vec3,
+    force: &Vec3,
+    normal: f64,
+    friction: f64,
+    sliding: bool,
+) {
+    let fb = &mut tool.feedback;
+    fb.force_in_world += force;
+    fb.torque_in_world += (at - tool.pose.position_in_world).cross(force);
+    fb.contacts += 1;
+    fb.normal_force += normal;
+    fb.friction_force += friction;
+    fb.sliding += sliding as u32;
+}
+
+/// Step 1: releases, sticks or slides every node already in contact; writes the end position and
+/// velocity of the nodes still held, and their feedback. `friction` is the body's Coulomb coefficient.
+pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f64, dt: f64) {
+    for i in 0..surface.tool_contact.len() {
+        let contact = surface.tool_contact[i];
+        if contact.tool == NO_TOOL {
+            continue;
+        }
+        let tool = &mut tools[contact.tool as usize];
+        let part = contact.part as usize;
+        if part >= tool.part_count {
+            surface.tool_contact[i] = ToolContact::default();
+            continue;
+        }
+        let start = surface.position_in_world[i];
+        // Outward normal of the tool at the node, from where the node sits at the start of the tick.
+        let fallback = tool.previous_pose.world_from_tool
+            * (contact.point_in_tool
+                - tool.parts_in_tool[part].closest_on_segment(&contact.point_in_tool));
+        let fallback = fallback.try_normalize(1e-15).unwrap_or(Vec3::z());
+        let (_, normal) = tool.parts_start[part].project_to_surface(&start, &fallback);
+        let force = surface.force_in_world[i];
+        let normal_component = force.dot(&normal);
+        if normal_component > 0.0 {
+            // The model pulls the node away from the tool: released, integrated as a free node.
+            surface.tool_contact[i] = ToolContact::default();
+            continue;
+        }
+        let normal_force = -normal_component;
+        let tangential_force = force - normal * normal_component;
+        let mass = surface.mass[i];
+        let held_at = tool.pose.to_world(&contact.point_in_tool);
+        let tool_point_velocity = (held_at - start) / dt;
+        // Relative tangential velocity the node would have without friction this tick.
+        let relative = surface.velocity_in_world[i] - tool_point_velocity;
+        let relative_tangential =
+            relative - normal * relative.dot(&normal) + tangential_force * (dt / mass);
+        let slip_speed = relative_tangential.norm();
+        let friction_dv = friction * normal_force * dt / mass;
+        let (end, feedback, friction_magnitude, sliding) = if slip_speed <= friction_dv {
+            // Sticks: the tool holds it where it is on the tool and takes its whole force.
+            (held_at, force, tangential_force.norm(), false)
+        } else {
+            let slip = relative_tangential / slip_speed;
+            let remaining = relative_tangential - slip * friction_dv;
+            let moved = held_at + remaining * dt;
+            let (on_surface, _) = tool.parts_end[part].project_to_surface(&moved, &normal);
+            let kinetic = slip * (friction * normal_force);
+            (
+                on_surface,
+                normal * normal_component + kinetic,
+                kinetic.norm(),
+                true,
+            )
+        };
+        surface.tool_contact[i].point_in_tool = tool.pose.to_tool(&end);
+        surface.next_position_in_world[i] = end;
+        surface.velocity_in_world[i] = (end - start) / dt;
+        add_feedback(
+            tool,
+            &end,
+            &feedback,
+            normal_force,
+            friction_magnitude,
+            sliding,
+        );
+    }
+}
+
+/// The pose a fraction `s` of the way through the tick.
+fn pose_between(a: &ToolPose, b: &ToolPose, s: f64) -> ToolPose {
+    ToolPose {
+        position_in_world: a.position_in_world.lerp(&b.position_in_world, s),
+        world_from_tool: a
+            .world_from_tool
+            .try_slerp(&b.world_from_tool, s, 1e-12)
+            .unwrap_or(b.world_from_tool),
+    }
+}
+
+/// The box swept by a tool's capsules over the tick.
+pub fn swept_box(tool: &Tool) -> Aabb {
+    let mut aabb = Aabb::empty();
+    let mut margin: f64 = 0.0;
+    for k in 0..tool.part_count {
+        for part in [&tool.parts_start[k], &tool.parts_end[k]] {
+            aabb.include(&part.a);
+            aabb.include(&part.b);
+            margin = margin.max(part.radius);
+        }
+    }
+    aabb.inflate(margin + CONTACT_TOLERANCE);
+    aabb
+}
+
+/// Step 3: continuous detection of every free node's trajectory against every tool; returns how many
+/// nodes joined a contact zone. Contact nodes of step 1 are not touched.
+pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) -> u32 {
+    let mut captured = 0;
+    for (tool_index, tool) in tools.iter_mut().enumerate() {
+        let sweep = swept_box(tool);
+        for i in 0..surface.position_in_world.len() {
+            if surface.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            let start = surface.position_in_world[i];
+            let predicted = surface.next_position_in_world[i];
+            if !sweep.overlaps_segment(&start, &predicted) {
+                continue;
+            }
+            // Earliest touch over the tool's parts.
+            let mut first: Option<(f64, usize)> = None;
+            for k in 0..tool.part_count {
+                if let Some(t) = time_of_impact_point_capsule(
+                    &start,
+                    &predicted,
+                    &tool.parts_start[k],
+                    &tool.parts_end[k],
+                    CONTACT_TOLERANCE,
+                ) && first.is_none_or(|(best, _)| t < best)
+                {
+                    first = Some((t, k));
+                }
+            }
+            let Some((t, part)) = first else { continue };
+            // Where on the tool it touched, carried to the end of the tick with the tool.
+            let at_touch = start.lerp(&predicted, t);
+            let capsule = lerp_capsule(&tool.parts_start[part], &tool.parts_end[part], t);
+            let toward = (predicted - start)
+                .try_normalize(1e-15)
+                .map_or(Vec3::z(), |d| -d);
+            let (touch_point, _) = capsule.project_to_surface(&at_touch, &toward);
+            let pose = pose_between(&tool.previous_pose, &tool.pose, t);
+            let carried = tool.pose.to_world(&pose.to_tool(&touch_point));
+            let (end, _) = tool.parts_end[part].project_to_surface(&carried, &toward);
+            surface.tool_contact[i] = ToolContact {
+                tool: tool_index as u32,
+                part: part as u32,
+                point_in_tool: tool.pose.to_tool(&end),
+            };
+            surface.next_position_in_world[i] = end;
+            surface.velocity_in_world[i] = (end - start) / dt;
+            let force = surface.force_in_world[i];
+            let (_, normal) = tool.parts_end[part].project_to_surface(&end, &toward);
+            let normal_component = force.dot(&normal);
+            let friction_magnitude = (force - normal * normal_component).norm();
+            add_feedback(
+                tool,
+                &end,
+                &force,
+                (-normal_component).max(0.0),
+                friction_magnitude,
+                false,
+            );
+            captured += 1;
+        }
+    }
+    captured
+}
+
+/// Step 4: moves any node left inside a tool capsule at the end of the tick onto its surface; returns
+/// how many were moved.
+pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], dt: f64) -> u32 {
+    let mut moved = 0;
+    for tool in tools {
+        let mut reach = Aabb::empty();
+        let mut margin: f64 = 0.0;
+        for part in &tool.parts_end[..tool.part_count] {
+            reach.include(&part.a);
+            reach.include(&part.b);
+            margin = margin.max(part.radius);
+        }
+        reach.inflate(margin);
+        for i in 0..surface.next_position_in_world.len() {
+            let p = surface.next_position_in_world[i];
+            if !reach.overlaps_segment(&p, &p) {
+                continue;
+            }
+            let (distance, part) = tool.signed_distance(&p);
+            if distance < 0.0 {
+                let (on_surface, _) = tool.parts_end[part].project_to_surface(&p, &Vec3::z());
+                surface.next_position_in_world[i] = on_surface;
+                surface.velocity_in_world[i] += (on_surface - p) / dt;
+                moved += 1;
+            }
+        }
+    }
+    moved
+}
