@@ -69,8 +69,16 @@ fn bench_stages(c: &mut Criterion) {
         b.iter(|| integrate_nodes_symplectic(&mut world.bodies[0].surface, dt))
     });
     let obstacles = world.obstacles.clone();
+    let mut reactions = vec![palpa::Vec3::zeros(); obstacles.len()];
     group.bench_function("obstacle_contact", |b| {
-        b.iter(|| resolve_nodes_against_obstacles(&mut world.bodies[0].surface, &obstacles, dt))
+        b.iter(|| {
+            resolve_nodes_against_obstacles(
+                &mut world.bodies[0].surface,
+                &obstacles,
+                &mut reactions,
+                dt,
+            )
+        })
     });
     group.finish();
 }
