@@ -6,9 +6,10 @@
 //! Each tick, per body, after the forces are known:
 //! 1. [`hold_contact_nodes`]: a contact node whose force pulls it away from the tool is released (it is
 //!    then integrated as a free node). Otherwise Coulomb friction decides: it sticks (it stays at its
-//!    point of the tool, and feeds back its whole force) when the friction needed to keep it there is
-//!    inside the cone μ N, and otherwise slides along the tool surface, feeding back its normal force
-//!    plus the kinetic friction μ N along its slip.
+//!    point of the tool, and feeds back its whole force: at rest, exactly the force of the springs,
+//!    link and gravity on it) when the friction needed to keep it there is inside the cone μ N, and
+//!    otherwise slides along the tool surface, feeding back its normal force plus the kinetic
+//!    friction μ N along its slip. Either way the tangential feedback of a node is at most μ N.
 //! 2. The free nodes are integrated.
 //! 3. [`capture_new_contacts`]: continuous detection of each free node's trajectory against each tool
 //!    capsule's motion over the tick; a node that meets the tool joins the contact zone at the point
@@ -106,8 +107,12 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
         let slip_speed = relative_tangential.norm();
         let friction_dv = friction * normal_force * dt / mass;
         let (end, feedback, friction_magnitude, sliding) = if slip_speed <= friction_dv {
-            // Sticks: the tool holds it where it is on the tool and takes its whole force.
-            (held_at, force, tangential_force.norm(), false)
+            // Sticks: the tool holds it where it is on the tool. The friction the tool supplies is
+            // what stops the relative slip this tick — the node's tangential force at rest, plus its
+            // inertia when the tool accelerates — and is inside the cone by the test above.
+            let stick_friction = relative_tangential * (mass / dt);
+            let feedback = normal * normal_component + stick_friction;
+            (held_at, feedback, stick_friction.norm(), false)
         } else {
             let slip = relative_tangential / slip_speed;
             let remaining = relative_tangential - slip * friction_dv;
@@ -174,6 +179,17 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
             let start = surface.position_in_world[i];
             let predicted = surface.next_position_in_world[i];
             if !sweep.overlaps_segment(&start, &predicted) {
+                continue;
+            }
+            // A node that starts the tick touching the tool (one just released, or resting against
+            // it) joins the contact zone only if the tool ends up pushing into it; otherwise it is
+            // separating and stays free. Every other node joins at its first touch.
+            let touching_at_start = (0..tool.part_count)
+                .any(|k| tool.parts_start[k].signed_distance(&start) <= CONTACT_TOLERANCE);
+            if touching_at_start
+                && (0..tool.part_count)
+                    .all(|k| tool.parts_end[k].signed_distance(&predicted) >= 0.0)
+            {
                 continue;
             }
             // Earliest touch over the tool's parts.
