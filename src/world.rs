@@ -10,7 +10,9 @@ use crate::Vec3;
 use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
-use crate::contact::tool::{capture_new_contacts, hold_contact_nodes, push_out_of_tools};
+use crate::contact::tool::{
+    capture_new_contacts, detect_face_contacts, hold_contact_nodes, push_out_of_tools,
+};
 use crate::dynamics::forces::accumulate_body_forces;
 use crate::dynamics::integrate::{
     commit_positions, integrate_free_nodes_symplectic, integrate_nodes_symplectic,
@@ -76,6 +78,9 @@ pub struct StepCounters {
     pub obstacle_contacts: usize,
     /// Nodes that joined a tool's contact zone this step.
     pub tool_captures: u32,
+    /// Triangles a tool touched between their corners this step (see
+    /// [`detect_face_contacts`](crate::contact::tool::detect_face_contacts)).
+    pub tool_face_contacts: u32,
     /// Nodes moved out of a tool by the final guard (two parts squeezing a node).
     pub tool_push_outs: u32,
 }
@@ -208,6 +213,7 @@ impl World {
                 integrate_free_nodes_symplectic(&mut body.surface, dt);
                 counters.tool_captures +=
                     capture_new_contacts(&mut body.surface, &mut self.tools, dt);
+                counters.tool_face_contacts += detect_face_contacts(&body.surface, &self.tools);
             } else {
                 integrate_nodes_symplectic(&mut body.surface, dt);
             }

@@ -14,16 +14,22 @@
 //! 3. [`capture_new_contacts`]: continuous detection of each free node's trajectory against each tool
 //!    capsule's motion over the tick; a node that meets the tool joins the contact zone at the point
 //!    where it touched and ends the tick there.
+//!    [`detect_face_contacts`] finds the triangles the tool touches between their corners.
 //! 4. [`push_out_of_tools`]: a last guard so that no node ends a tick inside a tool (only ever acts
 //!    when two parts of a tool squeeze a node).
 
 use crate::Vec3;
 use crate::body::Surface;
-use crate::collision::tool::{Aabb, lerp_capsule, time_of_impact_point_capsule};
+use crate::collision::tool::{
+    Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule,
+};
 use crate::tool::{Tool, ToolPose};
 
 /// No tool: the node is free.
 pub const NO_TOOL: u32 = u32::MAX;
+
+/// How far inside a tool a node placed on its surface may sit through rounding alone (m).
+pub const SURFACE_ROUNDING: f64 = 1e-12;
 
 /// Distance within which continuous detection reports contact (m).
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
@@ -242,6 +248,53 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
     captured
 }
 
+/// Step 3b: detection of the tool touching a face or an edge *between* nodes — a probe finer than the
+/// mesh, a blade edge across an edge — for every triangle none of whose corners the tool holds: the
+/// tool's capsules against the triangle's motion over the tick (both ways: a tool end through the
+/// face, the tool's axis across the triangle's edges). Returns how many triangles the tool touches
+/// this way. The paper's response, a node inserted at the touch point with its mass taken from the
+/// corners, comes with adaptive subdivision; until then these contacts are counted, and the nodes
+/// around them still meet the tool through [`capture_new_contacts`].
+pub fn detect_face_contacts(surface: &Surface, tools: &[Tool]) -> u32 {
+    let mut touched = 0;
+    for tool in tools {
+        let sweep = swept_box(tool);
+        let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
+        for &[a, b, c] in &surface.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            // Cheap reject first: the triangle's swept box against the tool's, read in place.
+            let mut lo = x0[a].inf(&x0[b]).inf(&x0[c]);
+            lo = lo.inf(&x1[a]).inf(&x1[b]).inf(&x1[c]);
+            let mut hi = x0[a].sup(&x0[b]).sup(&x0[c]);
+            hi = hi.sup(&x1[a]).sup(&x1[b]).sup(&x1[c]);
+            if !sweep.overlaps_segment(&lo, &hi) {
+                continue;
+            }
+            let corners = [a, b, c];
+            if corners
+                .iter()
+                .any(|&v| surface.tool_contact[v].tool != NO_TOOL)
+            {
+                continue;
+            }
+            let start = [x0[a], x0[b], x0[c]];
+            let end = [x1[a], x1[b], x1[c]];
+            let hit = (0..tool.part_count).any(|k| {
+                time_of_impact_capsule_triangle(
+                    &tool.parts_start[k],
+                    &tool.parts_end[k],
+                    &start,
+                    &end,
+                    CONTACT_TOLERANCE,
+                )
+                .is_some()
+            });
+            touched += hit as u32;
+        }
+    }
+    touched
+}
+
 /// Step 4: moves any node left inside a tool capsule at the end of the tick onto its surface; returns
 /// how many were moved.
 pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], dt: f64) -> u32 {
@@ -261,7 +314,8 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], dt: f64) -> u32 
                 continue;
             }
             let (distance, part) = tool.signed_distance(&p);
-            if distance < 0.0 {
+            // Nodes placed on the surface sit there to rounding; deeper than that is a squeeze.
+            if distance < -SURFACE_ROUNDING {
                 let (on_surface, _) = tool.parts_end[part].project_to_surface(&p, &Vec3::z());
                 surface.next_position_in_world[i] = on_surface;
                 surface.velocity_in_world[i] += (on_surface - p) / dt;
