@@ -230,18 +230,9 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
             };
             surface.next_position_in_world[i] = end;
             surface.velocity_in_world[i] = (end - start) / dt;
-            let force = surface.force_in_world[i];
-            let (_, normal) = tool.parts_end[part].project_to_surface(&end, &toward);
-            let normal_component = force.dot(&normal);
-            let friction_magnitude = (force - normal * normal_component).norm();
-            add_feedback(
-                tool,
-                &end,
-                &force,
-                (-normal_component).max(0.0),
-                friction_magnitude,
-                false,
-            );
+            // It touched during the tick and is held from its end on: it counts as a contact now,
+            // and its force reaches the device from the next tick, when the tool holds it.
+            add_feedback(tool, &end, &Vec3::zeros(), 0.0, 0.0, false);
             captured += 1;
         }
     }
