@@ -523,29 +523,35 @@ pub fn icosphere(radius: f64, subdivisions: u32) -> SurfaceMesh {
 /// An axis-aligned box of the given full size, centred on the origin, each face split into
 /// `(subdivisions + 1)²` quads of two triangles.
 pub fn box_mesh(size: Vec3, subdivisions: u32) -> SurfaceMesh {
-    let s = subdivisions as i64 + 1;
+    box_mesh_per_axis(size, [subdivisions; 3])
+}
+
+/// A box whose edges along axis k are split into `subdivisions[k] + 1` segments (a thin plate can be
+/// fine across and one segment thick).
+pub fn box_mesh_per_axis(size: Vec3, subdivisions: [u32; 3]) -> SurfaceMesh {
+    let s = subdivisions.map(|n| n as i64 + 1);
     let mut index: BTreeMap<[i64; 3], u32> = BTreeMap::new();
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     let mut vertex = |g: [i64; 3], positions: &mut Vec<Vec3>| -> u32 {
         *index.entry(g).or_insert_with(|| {
             let p = Vec3::new(
-                (g[0] as f64 / s as f64 - 0.5) * size.x,
-                (g[1] as f64 / s as f64 - 0.5) * size.y,
-                (g[2] as f64 / s as f64 - 0.5) * size.z,
+                (g[0] as f64 / s[0] as f64 - 0.5) * size.x,
+                (g[1] as f64 / s[1] as f64 - 0.5) * size.y,
+                (g[2] as f64 / s[2] as f64 - 0.5) * size.z,
             );
             positions.push(p);
             (positions.len() - 1) as u32
         })
     };
     for axis in 0..3 {
-        for side in [0, s] {
-            let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+        let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0, s[axis]] {
             let mut normal = [0.0; 3];
             normal[axis] = if side == 0 { -1.0 } else { 1.0 };
             let normal = Vec3::from(normal);
-            for i in 0..s {
-                for j in 0..s {
+            for i in 0..s[u] {
+                for j in 0..s[w] {
                     let corner = |di: i64, dj: i64| {
                         let mut g = [0i64; 3];
                         g[axis] = side;

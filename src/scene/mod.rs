@@ -619,10 +619,25 @@ impl Ctx<'_> {
             )
         } else if let Some(bx) = &m.box_ {
             let size = self.positive_vector(&bx.get_ref().size, "size")?;
-            let subdivisions = check_subdivisions(&bx.get_ref().subdivisions, 0, 100)?;
+            let subdivisions = match &bx.get_ref().subdivisions {
+                None => [0; 3],
+                Some(v) => {
+                    let n = match v.get_ref() {
+                        BoxSubdivisions::Uniform(n) => [*n; 3],
+                        BoxSubdivisions::PerAxis(a) => *a,
+                    };
+                    if n.iter().any(|&k| k > 100) {
+                        return Err(self.error(
+                            v.span(),
+                            format!("`subdivisions` must be at most 100 (per axis), found {n:?}"),
+                        ));
+                    }
+                    n
+                }
+            };
             (
-                mesh::box_mesh(size, subdivisions),
-                format!("box size={:?} s={subdivisions}", size.as_slice()),
+                mesh::box_mesh_per_axis(size, subdivisions),
+                format!("box size={:?} s={subdivisions:?}", size.as_slice()),
             )
         } else {
             let obj = m.obj.as_ref().expect("one mesh kind was given");

@@ -80,7 +80,14 @@ pub(super) struct EllipsoidSection {
 #[serde(deny_unknown_fields)]
 pub(super) struct BoxMeshSection {
     pub size: Spanned<[f64; 3]>,
-    pub subdivisions: Option<Spanned<u32>>,
+    pub subdivisions: Option<Spanned<BoxSubdivisions>>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum BoxSubdivisions {
+    Uniform(u32),
+    PerAxis([u32; 3]),
 }
 
 #[derive(Deserialize)]

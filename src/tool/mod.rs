@@ -293,6 +293,9 @@ pub struct Tool {
     pub feedback: Feedback,
     /// Target set from outside for the next tick (IPC input).
     target: Option<(ToolPose, f64)>,
+    /// False for an externally driven tool until its first pose arrives: until then it has no parts
+    /// and touches nothing, and its first pose places it without sweeping from the origin.
+    pub active: bool,
 }
 
 impl Tool {
@@ -314,7 +317,9 @@ impl Tool {
             part_count: 0,
             feedback: Feedback::default(),
             target: None,
+            active: false,
         };
+        tool.active = matches!(tool.input, ToolInput::Script(_));
         tool.place();
         tool.parts_start = tool.parts_end;
         tool
@@ -328,6 +333,14 @@ impl Tool {
     /// Begins a tick ending at time `t_end`: the current pose becomes the start, the new pose comes
     /// from the script or the last external target (held when none arrived).
     pub fn begin_tick(&mut self, t_end: f64) {
+        if !self.active && self.target.is_some() {
+            // First external pose: the tool appears there, it does not sweep from the origin.
+            let (pose, jaw) = self.target.expect("checked");
+            self.pose = pose;
+            self.jaw = jaw;
+            self.active = true;
+            self.place();
+        }
         self.previous_pose = self.pose;
         self.previous_jaw = self.jaw;
         self.parts_start = self.parts_end;
@@ -339,6 +352,10 @@ impl Tool {
     }
 
     fn place(&mut self) {
+        if !self.active {
+            self.part_count = 0;
+            return;
+        }
         self.part_count = self.shape.parts_in_tool(self.jaw, &mut self.parts_in_tool);
         for k in 0..self.part_count {
             self.parts_end[k] = self.parts_in_tool[k].placed(&self.pose);
