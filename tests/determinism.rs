@@ -27,6 +27,7 @@ fn two_library_runs_give_byte_identical_traces() {
         "scenes/organ.toml",
         "scenes/inclined_plane.toml",
         "scenes/table_rest.toml",
+        "scenes/probe_press.toml",
     ] {
         let a = trace_of(scene, 1500);
         let b = trace_of(scene, 1500);
