@@ -9,6 +9,7 @@
 use crate::Vec3;
 use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
+use crate::contact::bodies::{BodyContactCounters, BodyContactScratch, resolve_body_collisions};
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
     capture_new_contacts, detect_face_contacts, hold_contact_nodes, push_out_of_tools,
@@ -46,6 +47,8 @@ pub struct Systems {
     pub rigid_motion: bool,
     /// There are tools: continuous detection against them, contact zones, friction, feedback.
     pub tool_contact: bool,
+    /// Two bodies or more: broad phase and continuous detection between their surfaces.
+    pub body_contact: bool,
 }
 
 impl Systems {
@@ -62,6 +65,8 @@ impl Systems {
             (self.tool_contact, "tool_contact"),
             (self.tool_contact, "tool_friction"),
             (self.tool_contact, "feedback"),
+            (self.body_contact, "body_broad_phase"),
+            (self.body_contact, "body_ccd"),
         ] {
             if on {
                 names.push(name);
@@ -83,6 +88,8 @@ pub struct StepCounters {
     pub tool_face_contacts: u32,
     /// Nodes moved out of a tool by the final guard (two parts squeezing a node).
     pub tool_push_outs: u32,
+    /// Body–body contact stage.
+    pub bodies: BodyContactCounters,
 }
 
 /// Everything simulated, and the step.
@@ -103,6 +110,7 @@ pub struct World {
     /// Counters of the last step.
     pub counters: StepCounters,
     systems: Systems,
+    body_contact: Option<BodyContactScratch>,
 }
 
 impl World {
@@ -117,6 +125,7 @@ impl World {
             tick: 0,
             counters: StepCounters::default(),
             systems: Systems::default(),
+            body_contact: None,
         };
         world.assemble();
         world
@@ -174,7 +183,12 @@ impl World {
                 .any(|o| o.friction > 0.0 || o.static_friction > 0.0),
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
             tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
+            body_contact: self.bodies.len() >= 2,
         };
+        self.body_contact = self
+            .systems
+            .body_contact
+            .then(|| BodyContactScratch::new(&self.bodies));
     }
 
     /// The systems this world runs.
@@ -191,8 +205,9 @@ impl World {
     ///
     /// Stages: tools move to their pose for the end of the tick; then per body forces → contact
     /// nodes held, slid or released → free nodes integrated → continuous detection against the tools
-    /// → obstacle contact → tool guard → positions committed → rigid component; last, each tool's
-    /// feedback is clamped to its `max_force`.
+    /// → obstacle contact → tool guard; then body–body broad phase and continuous detection on all
+    /// trajectories; then per body positions committed → rigid component; last, each tool's feedback
+    /// is clamped to its `max_force`.
     pub fn step(&mut self) {
         let dt = self.params.dt;
         let gravity = self.params.gravity;
@@ -228,6 +243,11 @@ impl World {
             if systems.tool_contact {
                 counters.tool_push_outs += push_out_of_tools(&mut body.surface, &self.tools, dt);
             }
+        }
+        if let Some(scratch) = self.body_contact.as_mut() {
+            counters.bodies = resolve_body_collisions(&mut self.bodies, scratch, dt);
+        }
+        for body in &mut self.bodies {
             commit_positions(&mut body.surface);
             body.rigid.integrate(dt);
         }

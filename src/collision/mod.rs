@@ -1,4 +1,7 @@
-//! Collision geometry: fixed obstacles and continuous detection against tools.
+//! Collision detection: fixed obstacles, continuous detection against tools, the broad phase between
+//! deformable surfaces and the continuous narrow phase (vertex–face, edge–edge).
 
+pub mod bvh;
+pub mod ccd;
 pub mod obstacle;
 pub mod tool;

@@ -1,4 +1,6 @@
-//! Contact responses: nodes against fixed obstacles and against tools, with Coulomb friction.
+//! Contact responses: nodes against fixed obstacles and against tools (with Coulomb friction), and
+//! surfaces of different bodies against each other.
 
+pub mod bodies;
 pub mod obstacle;
 pub mod tool;
