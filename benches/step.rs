@@ -83,5 +83,60 @@ fn bench_stages(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_step, bench_stages);
+/// Continuous detection with a probe pressed into the 10 242-node body on the table: the stages that
+/// find contacts on trajectories (node–probe CCD with its swept-box broad phase, triangle–probe
+/// detection between nodes, node–table contact) and a whole step. Target: under 200 µs for the
+/// detection stages.
+fn bench_contact(c: &mut Criterion) {
+    use palpa::Vec3;
+    use palpa::contact::obstacle::resolve_nodes_against_obstacles;
+    use palpa::contact::tool::{capture_new_contacts, detect_face_contacts};
+    use palpa::tool::{Tool, ToolInput, ToolPose, ToolShape};
+    let mut world = resting_world(5);
+    let top = world.bodies[0]
+        .surface
+        .position_in_world
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::MIN, f64::max);
+    let mut probe = Tool::new(
+        "probe",
+        ToolShape::Sphere { radius: 0.005 },
+        ToolInput::Ipc,
+        None,
+    );
+    let at = |z: f64| ToolPose {
+        position_in_world: Vec3::new(0.0, 0.0, z),
+        ..ToolPose::default()
+    };
+    probe.set_target(at(top + 0.01), 0.0);
+    world.add_tool(probe);
+    for k in 0..400 {
+        let z = top + 0.005 - 0.004 * (k as f64 / 400.0);
+        world.tools[0].set_target(at(z), 0.0);
+        world.step();
+    }
+    assert!(
+        world.tools[0].feedback.contacts > 0,
+        "the probe is pressing"
+    );
+    let dt = world.params.dt;
+    let mut group = c.benchmark_group("contact_10242");
+    group.bench_function("step_with_probe", |b| b.iter(|| world.step()));
+    let obstacles = world.obstacles.clone();
+    let mut reactions = vec![Vec3::zeros(); obstacles.len()];
+    let World { bodies, tools, .. } = &mut world;
+    group.bench_function("detection_stages", |b| {
+        b.iter(|| {
+            let surface = &mut bodies[0].surface;
+            let captured = capture_new_contacts(surface, tools, dt);
+            let faces = detect_face_contacts(surface, tools);
+            let table = resolve_nodes_against_obstacles(surface, &obstacles, &mut reactions, dt);
+            black_box((captured, faces, table))
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_stages, bench_contact);
 criterion_main!(benches);
