@@ -15,6 +15,7 @@
 //! - [`contact`]: node–obstacle and node–tool contact with Coulomb friction; force feedback.
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
 //! - [`trace`]: the CSV trace of a run.
+//! - [`display`]: mesh keyframes and deltas for renderers, and the client that rebuilds them.
 //! - [`ipc`]: the shared-memory payloads (`proto/palpa_ipc.h`) and, with the `ipc` feature, services.
 //!
 //! ```
@@ -34,6 +35,7 @@
 pub mod body;
 pub mod collision;
 pub mod contact;
+pub mod display;
 pub mod dynamics;
 pub mod ipc;
 pub mod scene;

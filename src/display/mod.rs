@@ -1,0 +1,293 @@
+//! Mesh streaming for displays: the daemon side encodes keyframes and deltas of each body's surface
+//! in the layout of `proto/palpa_ipc.h` (positions as f32), and [`DisplayMesh`] is the client side
+//! that rebuilds the mesh a display shows — exactly the daemon's f32 positions, bit for bit.
+//!
+//! A delta carries the vertices whose f32 position changed since the last message of that body, so
+//! a display that joined on a keyframe and applied every delta since holds the same bits as the
+//! daemon. Buffers are sized at start; encoding allocates nothing.
+
+use crate::Vec3;
+use crate::ipc::payload::{MESH_DELTA, MESH_KEYFRAME, MeshHeaderV1};
+
+/// Bytes per vertex in a keyframe.
+pub const KEYFRAME_VERTEX_BYTES: usize = 12;
+/// Bytes per triangle in a keyframe.
+pub const KEYFRAME_TRIANGLE_BYTES: usize = 12;
+/// Bytes per changed vertex in a delta.
+pub const DELTA_ENTRY_BYTES: usize = 16;
+
+/// Largest slice a body's messages need: a keyframe (a delta is never larger).
+pub fn max_message_bytes(vertices: usize, triangles: usize) -> usize {
+    (vertices * KEYFRAME_VERTEX_BYTES + triangles * KEYFRAME_TRIANGLE_BYTES)
+        .max(vertices * DELTA_ENTRY_BYTES)
+}
+
+fn to_f32(p: &Vec3) -> [f32; 3] {
+    [p.x as f32, p.y as f32, p.z as f32]
+}
+
+fn put_f32(out: &mut [u8], at: usize, v: f32) {
+    out[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_u32(out: &mut [u8], at: usize, v: u32) {
+    out[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+/// The daemon side of one body's stream: what the displays were last sent.
+#[derive(Clone, Debug)]
+pub struct MeshEncoder {
+    body: u32,
+    sent: Vec<[f32; 3]>,
+    sent_tick: u64,
+}
+
+impl MeshEncoder {
+    /// An encoder for body `body` with `vertices` vertices.
+    pub fn new(body: u32, vertices: usize) -> Self {
+        Self {
+            body,
+            sent: vec![[0.0; 3]; vertices],
+            sent_tick: 0,
+        }
+    }
+
+    /// Writes a keyframe of `positions` and `triangles` at `tick` into `out`; returns its header.
+    /// `out` must hold [`max_message_bytes`].
+    pub fn keyframe(
+        &mut self,
+        tick: u64,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        out: &mut [u8],
+    ) -> MeshHeaderV1 {
+        let mut at = 0;
+        for (p, sent) in positions.iter().zip(self.sent.iter_mut()) {
+            *sent = to_f32(p);
+            for v in *sent {
+                put_f32(out, at, v);
+                at += 4;
+            }
+        }
+        for t in triangles {
+            for &v in t {
+                put_u32(out, at, v);
+                at += 4;
+            }
+        }
+        self.sent_tick = tick;
+        MeshHeaderV1 {
+            kind: MESH_KEYFRAME,
+            body: self.body,
+            tick,
+            base_tick: tick,
+            vertex_count: positions.len() as u32,
+            triangle_count: triangles.len() as u32,
+            changed_count: 0,
+            payload_bytes: at as u32,
+        }
+    }
+
+    /// Writes the vertices whose f32 position changed since the last message into `out`; returns its
+    /// header (with `changed_count` possibly 0).
+    pub fn delta(&mut self, tick: u64, positions: &[Vec3], out: &mut [u8]) -> MeshHeaderV1 {
+        let mut at = 0;
+        let mut changed = 0;
+        for (i, (p, sent)) in positions.iter().zip(self.sent.iter_mut()).enumerate() {
+            let now = to_f32(p);
+            if now.map(f32::to_bits) != sent.map(f32::to_bits) {
+                *sent = now;
+                put_u32(out, at, i as u32);
+                for (k, v) in now.into_iter().enumerate() {
+                    put_f32(out, at + 4 + 4 * k, v);
+                }
+                at += DELTA_ENTRY_BYTES;
+                changed += 1;
+            }
+        }
+        let base_tick = self.sent_tick;
+        self.sent_tick = tick;
+        MeshHeaderV1 {
+            kind: MESH_DELTA,
+            body: self.body,
+            tick,
+            base_tick,
+            vertex_count: positions.len() as u32,
+            triangle_count: 0,
+            changed_count: changed,
+            payload_bytes: at as u32,
+        }
+    }
+}
+
+/// Why a mesh message cannot be applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MeshStreamError {
+    /// A delta arrived before any keyframe.
+    #[error("a delta arrived before a keyframe")]
+    NoKeyframe,
+    /// A delta does not apply to the state held (a message was missed): wait for a keyframe.
+    #[error("delta for tick {base_tick} but the display holds tick {held}: wait for a keyframe")]
+    Gap {
+        /// The delta's base.
+        base_tick: u64,
+        /// What the display holds.
+        held: u64,
+    },
+    /// The header and the bytes disagree.
+    #[error("malformed mesh message")]
+    Malformed,
+}
+
+/// The client side: the mesh of one body as a display holds it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DisplayMesh {
+    /// Tick of the state held (valid once `ready`).
+    pub tick: u64,
+    /// Vertex positions (m, world, f32).
+    pub positions: Vec<[f32; 3]>,
+    /// Triangles.
+    pub triangles: Vec<[u32; 3]>,
+    /// A keyframe has been applied.
+    pub ready: bool,
+}
+
+fn get_u32(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(bytes[at..at + 4].try_into().expect("four bytes"))
+}
+
+fn get_f32(bytes: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes(bytes[at..at + 4].try_into().expect("four bytes"))
+}
+
+impl DisplayMesh {
+    /// Applies one message. A display joining late ignores deltas (with [`MeshStreamError::NoKeyframe`])
+    /// until a keyframe arrives; after a gap it waits for the next keyframe the same way.
+    pub fn apply(&mut self, header: &MeshHeaderV1, bytes: &[u8]) -> Result<(), MeshStreamError> {
+        let n = header.vertex_count as usize;
+        match header.kind {
+            MESH_KEYFRAME => {
+                let t = header.triangle_count as usize;
+                let need = n * KEYFRAME_VERTEX_BYTES + t * KEYFRAME_TRIANGLE_BYTES;
+                if bytes.len() < need || header.payload_bytes as usize != need {
+                    return Err(MeshStreamError::Malformed);
+                }
+                self.positions = (0..n)
+                    .map(|i| [0, 1, 2].map(|k| get_f32(bytes, 12 * i + 4 * k)))
+                    .collect();
+                let base = n * KEYFRAME_VERTEX_BYTES;
+                self.triangles = (0..t)
+                    .map(|i| [0, 1, 2].map(|k| get_u32(bytes, base + 12 * i + 4 * k)))
+                    .collect();
+                if self.triangles.iter().flatten().any(|&v| v as usize >= n) {
+                    self.ready = false;
+                    return Err(MeshStreamError::Malformed);
+                }
+                self.tick = header.tick;
+                self.ready = true;
+                Ok(())
+            }
+            MESH_DELTA => {
+                if !self.ready {
+                    return Err(MeshStreamError::NoKeyframe);
+                }
+                if header.base_tick != self.tick {
+                    self.ready = false;
+                    return Err(MeshStreamError::Gap {
+                        base_tick: header.base_tick,
+                        held: self.tick,
+                    });
+                }
+                let c = header.changed_count as usize;
+                if n != self.positions.len()
+                    || bytes.len() < c * DELTA_ENTRY_BYTES
+                    || header.payload_bytes as usize != c * DELTA_ENTRY_BYTES
+                {
+                    return Err(MeshStreamError::Malformed);
+                }
+                for e in 0..c {
+                    let at = e * DELTA_ENTRY_BYTES;
+                    let i = get_u32(bytes, at) as usize;
+                    if i >= n {
+                        return Err(MeshStreamError::Malformed);
+                    }
+                    self.positions[i] = [0, 1, 2].map(|k| get_f32(bytes, at + 4 + 4 * k));
+                }
+                self.tick = header.tick;
+                Ok(())
+            }
+            _ => Err(MeshStreamError::Malformed),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::default_scene;
+    use crate::world::World;
+
+    #[test]
+    fn a_late_display_rebuilds_the_exact_mesh() {
+        let mut world = World::from_scene(&default_scene());
+        let body = &world.bodies[0];
+        let bytes = max_message_bytes(body.node_count(), body.surface.triangles.len());
+        let mut out = vec![0u8; bytes];
+        let mut encoder = MeshEncoder::new(0, body.node_count());
+        let mut display = DisplayMesh::default();
+        let mut deltas = 0;
+        for tick in 1..=600u64 {
+            world.step();
+            let b = &world.bodies[0];
+            let header = if tick % 250 == 0 {
+                encoder.keyframe(
+                    tick,
+                    &b.surface.position_in_world,
+                    &b.surface.triangles,
+                    &mut out,
+                )
+            } else {
+                encoder.delta(tick, &b.surface.position_in_world, &mut out)
+            };
+            // The display joins at tick 100: deltas before its first keyframe are refused.
+            if tick >= 100 {
+                let applied = display.apply(&header, &out[..header.payload_bytes as usize]);
+                if tick < 250 {
+                    assert_eq!(applied, Err(MeshStreamError::NoKeyframe));
+                } else {
+                    applied.unwrap();
+                    deltas += (header.kind == MESH_DELTA) as u32;
+                }
+            }
+        }
+        assert!(deltas > 300);
+        let b = &world.bodies[0];
+        assert_eq!(display.tick, 600);
+        assert_eq!(display.triangles, b.surface.triangles);
+        for (shown, exact) in display.positions.iter().zip(&b.surface.position_in_world) {
+            assert_eq!(shown.map(f32::to_bits), to_f32(exact).map(f32::to_bits));
+        }
+    }
+
+    #[test]
+    fn a_missed_delta_is_detected() {
+        let positions = vec![Vec3::zeros(); 3];
+        let triangles = vec![[0, 1, 2]];
+        let mut out = vec![0u8; max_message_bytes(3, 1)];
+        let mut encoder = MeshEncoder::new(0, 3);
+        let mut display = DisplayMesh::default();
+        let h = encoder.keyframe(1, &positions, &triangles, &mut out);
+        display.apply(&h, &out).unwrap();
+        let moved = vec![Vec3::new(1.0, 0.0, 0.0); 3];
+        let _lost = encoder.delta(2, &moved, &mut out);
+        let h = encoder.delta(3, &positions, &mut out);
+        assert_eq!(
+            display.apply(&h, &out),
+            Err(MeshStreamError::Gap {
+                base_tick: 2,
+                held: 1
+            })
+        );
+        assert!(!display.ready);
+    }
+}
