@@ -1,0 +1,332 @@
+//! Conformance of the CCD narrow phase (`palpa::collision::ccd`) with the public benchmark's sample
+//! queries in `../shared/data/ccd-queries` (exact ground truth): no false negative in any file, and
+//! the false positives of each file printed. Also the `palpa-ccd` binary: its JSON line for one
+//! small file, its walk of a folder, and its refusal of bad input.
+//!
+//! Without the shared data the data-driven tests print `SKIPPED: …` and pass, unless
+//! `PALPA_REQUIRE_SHARED=1` (as in CI), where they fail.
+//!
+//! The file parser here is deliberately separate from the binary's, so that the two check each
+//! other.
+
+use palpa::Vec3;
+use palpa::collision::ccd::{
+    CcdHit, CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact,
+};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The shared sample queries, or `None` (after saying so) when they are absent and not required.
+fn shared_queries() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/ccd-queries");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    if std::env::var("PALPA_REQUIRE_SHARED").as_deref() == Ok("1") {
+        panic!(
+            "the CCD sample queries are required (PALPA_REQUIRE_SHARED=1) but {} is absent",
+            dir.display()
+        );
+    }
+    println!("SKIPPED: {} is absent", dir.display());
+    None
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    VertexFace,
+    EdgeEdge,
+}
+
+struct Query {
+    points: [Vec3; 8],
+    truth: bool,
+}
+
+fn csv_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|entry| entry.expect("directory entry").path())
+        .collect();
+    entries.sort();
+    for path in entries {
+        if path.is_dir() {
+            csv_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "csv") {
+            out.push(path);
+        }
+    }
+}
+
+fn kind_of(path: &Path) -> Kind {
+    match path
+        .parent()
+        .and_then(|p| p.file_name())
+        .and_then(|n| n.to_str())
+    {
+        Some("vertex-face") => Kind::VertexFace,
+        Some("edge-edge") => Kind::EdgeEdge,
+        other => panic!("{}: unknown query kind {other:?}", path.display()),
+    }
+}
+
+/// numerator / denominator, the denominator a power of two written in decimal (possibly > 2^63):
+/// as f64 it parses exactly, and so the quotient is exact (the data stay far from underflow).
+fn coordinate(numerator: &str, denominator: &str, at: &str) -> f64 {
+    let n: i64 = numerator
+        .parse()
+        .unwrap_or_else(|_| panic!("{at}: {numerator}"));
+    let d: f64 = denominator
+        .parse()
+        .unwrap_or_else(|_| panic!("{at}: {denominator}"));
+    assert!(
+        d >= 1.0 && d.to_bits() & ((1u64 << 52) - 1) == 0,
+        "{at}: denominator {denominator} is not a power of two"
+    );
+    assert!(n.unsigned_abs() <= 1 << 53, "{at}: numerator {numerator}");
+    let value = n as f64 / d;
+    assert_eq!(value * d, n as f64, "{at}: inexact");
+    value
+}
+
+fn read_queries(path: &Path) -> Vec<Query> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let rows: Vec<(Vec3, bool)> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, line)| !line.trim().is_empty())
+        .map(|(i, line)| {
+            let at = format!("{}:{}", path.display(), i + 1);
+            let f: Vec<&str> = line.split(',').map(str::trim).collect();
+            assert_eq!(f.len(), 7, "{at}: columns");
+            let p = Vec3::new(
+                coordinate(f[0], f[1], &at),
+                coordinate(f[2], f[3], &at),
+                coordinate(f[4], f[5], &at),
+            );
+            (p, f[6] == "1")
+        })
+        .collect();
+    assert_eq!(rows.len() % 8, 0, "{}: rows", path.display());
+    rows.chunks(8)
+        .map(|q| Query {
+            points: std::array::from_fn(|i| q[i].0),
+            truth: q[0].1,
+        })
+        .collect()
+}
+
+fn run_query(kind: Kind, q: &Query, settings: &CcdSettings) -> Option<CcdHit> {
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = &q.points;
+    match kind {
+        Kind::VertexFace => vertex_face_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings),
+        Kind::EdgeEdge => edge_edge_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings),
+    }
+}
+
+/// (queries, positives, false negatives, false positives) of one file with the default settings.
+fn counts(path: &Path) -> (usize, usize, usize, usize) {
+    let kind = kind_of(path);
+    let settings = CcdSettings::default();
+    let (mut queries, mut positives, mut false_negatives, mut false_positives) = (0, 0, 0, 0);
+    for (i, q) in read_queries(path).iter().enumerate() {
+        let hit = run_query(kind, q, &settings);
+        if let Some(h) = hit {
+            assert!(
+                (0.0..=1.0).contains(&h.time_of_impact),
+                "{} query {i}: {h:?}",
+                path.display()
+            );
+        }
+        queries += 1;
+        positives += usize::from(q.truth);
+        false_negatives += usize::from(q.truth && hit.is_none());
+        false_positives += usize::from(!q.truth && hit.is_some());
+    }
+    (queries, positives, false_negatives, false_positives)
+}
+
+#[test]
+fn no_false_negative_in_any_sample_query_file() {
+    let Some(dir) = shared_queries() else { return };
+    let mut files = Vec::new();
+    csv_files(&dir, &mut files);
+    assert!(!files.is_empty(), "no *.csv under {}", dir.display());
+    let mut missed = Vec::new();
+    let (mut all_queries, mut all_negatives, mut all_false_positives) = (0, 0, 0);
+    for path in &files {
+        let (queries, positives, false_negatives, false_positives) = counts(path);
+        let name = path.strip_prefix(&dir).unwrap_or(path).display();
+        println!(
+            "{name}: {queries} queries, {positives} positives, {false_negatives} false negatives, \
+             {false_positives} false positives"
+        );
+        if false_negatives > 0 {
+            missed.push(format!("{name}: {false_negatives}"));
+        }
+        all_queries += queries;
+        all_negatives += queries - positives;
+        all_false_positives += false_positives;
+    }
+    println!(
+        "all: {all_queries} queries, {all_false_positives} false positives out of {all_negatives} negatives"
+    );
+    assert!(missed.is_empty(), "false negatives: {missed:?}");
+}
+
+fn palpa_ccd(args: &[&Path]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_palpa-ccd"))
+        .args(args)
+        .output()
+        .expect("run palpa-ccd")
+}
+
+#[test]
+fn binary_reports_one_json_line_for_a_file() {
+    let Some(dir) = shared_queries() else { return };
+    let file = dir.join("unit-tests/edge-edge/data_0_1.csv");
+    let output = palpa_ccd(&[&file]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 1, "{stdout}");
+    let json: serde_json::Value = serde_json::from_str(lines[0]).expect("a JSON object");
+    let object = json.as_object().expect("a JSON object");
+    let mut keys: Vec<&str> = object.keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    assert_eq!(
+        keys,
+        [
+            "false_negatives",
+            "false_positives",
+            "file",
+            "kind",
+            "ns_per_query",
+            "positives",
+            "queries"
+        ]
+    );
+    let (queries, positives, false_negatives, false_positives) = counts(&file);
+    assert_eq!(queries, 20);
+    assert_eq!(json["file"], file.display().to_string());
+    assert_eq!(json["kind"], "edge-edge");
+    assert_eq!(json["queries"], queries);
+    assert_eq!(json["positives"], positives);
+    assert_eq!(json["false_negatives"], false_negatives);
+    assert_eq!(json["false_negatives"], 0);
+    assert_eq!(json["false_positives"], false_positives);
+    let ns = json["ns_per_query"].as_f64().expect("a number");
+    assert!(ns > 0.0 && ns.is_finite(), "{ns}");
+}
+
+/// A scratch folder of its own for each test, under the target directory.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch folder");
+    dir
+}
+
+/// One vertex–face query (a point falling through a triangle), 8 rows with the given truth.
+fn query_rows(truth: u8) -> String {
+    [
+        "1,4,1,4,1,1",
+        "0,1,0,1,0,1",
+        "1,1,0,1,0,1",
+        "0,1,1,1,0,1",
+        "1,4,1,4,-1,1",
+        "0,1,0,1,0,1",
+        "1,1,0,1,0,1",
+        "0,1,1,1,0,1",
+    ]
+    .iter()
+    .map(|row| format!("{row},{truth}\n"))
+    .collect()
+}
+
+#[test]
+fn binary_walks_folders_in_sorted_order() {
+    let dir = scratch("walk");
+    // The same 8 points: a vertex falling through a face (truth 1), and, read as two edges, an edge
+    // sweeping beside the other one (truth 0).
+    for (folder, name, truth) in [("vertex-face", "b.csv", 1), ("edge-edge", "a.csv", 0)] {
+        let folder = dir.join("set").join(folder);
+        std::fs::create_dir_all(&folder).expect("create folder");
+        std::fs::write(folder.join(name), query_rows(truth)).expect("write query file");
+        std::fs::write(folder.join("notes.txt"), "not a query file").expect("write");
+    }
+    let output = palpa_ccd(&[&dir]);
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    // edge-edge sorts before vertex-face; notes.txt is not read.
+    assert_eq!(lines[0]["kind"], "edge-edge");
+    assert_eq!(lines[0]["positives"], 0);
+    assert_eq!(lines[0]["false_positives"], 0);
+    assert_eq!(lines[1]["kind"], "vertex-face");
+    assert_eq!(lines[1]["positives"], 1);
+    assert_eq!(lines[1]["false_negatives"], 0);
+    for line in &lines {
+        assert_eq!(line["queries"], 1);
+    }
+}
+
+#[test]
+fn binary_refuses_bad_input_naming_file_and_line() {
+    let dir = scratch("bad");
+    let folder = dir.join("vertex-face");
+    std::fs::create_dir_all(&folder).expect("create folder");
+    let cases = [
+        (
+            "columns.csv",
+            query_rows(0).replacen("0,1,0,1,0,1,0", "0,1,0,1,0,0", 1),
+            "line 2",
+        ),
+        (
+            "number.csv",
+            query_rows(0).replacen("1,1,0,1,0,1", "1,1,x,1,0,1", 1),
+            "line 3",
+        ),
+        (
+            "denominator.csv",
+            query_rows(0).replacen("1,4,1,4,1,1", "1,3,1,4,1,1", 1),
+            "line 1",
+        ),
+        (
+            "truncated.csv",
+            query_rows(0)
+                .lines()
+                .take(5)
+                .map(|l| format!("{l}\n"))
+                .collect(),
+            "line 5",
+        ),
+    ];
+    for (name, text, line) in cases {
+        let path = folder.join(name);
+        std::fs::write(&path, text).expect("write query file");
+        let output = palpa_ccd(&[&path]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{name}: accepted");
+        assert!(
+            stderr.contains(name) && stderr.contains(line),
+            "{name}: {stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+    }
+    // A missing file, and a file whose folder does not tell the kind.
+    let unknown = dir.join("queries.csv");
+    std::fs::write(&unknown, query_rows(1)).expect("write query file");
+    for path in [dir.join("missing.csv"), unknown] {
+        let output = palpa_ccd(&[&path]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{}: accepted", path.display());
+        assert!(stderr.contains(&path.display().to_string()), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}

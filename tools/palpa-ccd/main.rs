@@ -1,0 +1,221 @@
+//! `palpa-ccd FILE_OR_DIR...`: runs the CCD narrow phase ([`palpa::collision::ccd`]) on query files
+//! of the public CCD benchmark (Wang et al. 2021, sample queries; format in
+//! `shared/data/ccd-queries/README.md`) and prints one JSON object per file, one per line:
+//!
+//! `{"file":…,"kind":"vertex-face"|"edge-edge","queries":N,"positives":N,"false_negatives":N,"false_positives":N,"ns_per_query":X}`
+//!
+//! A directory is walked recursively in sorted order and its `*.csv` files are read; a file named on
+//! the command line is read whatever its name. The kind of a file's queries is the name of the folder
+//! that holds it (`vertex-face` or `edge-edge`). `positives` counts the ground-truth collisions;
+//! `ns_per_query` is the mean wall time of one library call, the file's queries being run repeatedly
+//! (at least once, and for at least [`MIN_TIMING`] in all) so that short files still time well.
+//! Parsing is not timed. Bad input stops the run with a message naming the file and line, exit 1.
+
+mod query_file;
+
+use palpa::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
+use query_file::{Kind, Query, parse_query_file};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+/// Least total time spent timing one file's queries.
+const MIN_TIMING: Duration = Duration::from_millis(20);
+
+const USAGE: &str = "usage: palpa-ccd FILE_OR_DIR...\n\
+    Runs palpa's CCD narrow phase on CCD benchmark query files (CSV, 8 rows per query) and prints\n\
+    one JSON line per file. A directory is searched recursively for *.csv files; the query kind is\n\
+    the name of each file's folder: vertex-face or edge-edge.";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.is_empty() {
+        eprintln!("{USAGE}");
+        return ExitCode::from(2);
+    }
+    if args.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return ExitCode::SUCCESS;
+    }
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("palpa-ccd: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: &[String]) -> Result<(), String> {
+    // Every file and its kind first, so that a wrong argument fails before any output.
+    let mut files = Vec::new();
+    for arg in args {
+        collect_files(Path::new(arg), &mut files)?;
+    }
+    let files = files
+        .into_iter()
+        .map(|path| Ok((kind_of(&path)?, path)))
+        .collect::<Result<Vec<_>, String>>()?;
+    let settings = CcdSettings::default();
+    let mut out = std::io::stdout().lock();
+    for (kind, path) in files {
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        let queries = parse_query_file(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let report = evaluate(kind, &queries, &settings);
+        let line = report.to_json(&path.display().to_string(), kind);
+        // Flushed per file, so that a long run shows its progress.
+        let written = writeln!(out, "{line}").and_then(|()| out.flush());
+        match written {
+            Ok(()) => {}
+            // The reader has gone (`palpa-ccd … | head`): nothing more to say.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+            Err(e) => return Err(format!("cannot write to standard output: {e}")),
+        }
+    }
+    Ok(())
+}
+
+/// Adds `path` if it is a file, or the `*.csv` files under it, recursively in sorted order.
+fn collect_files(path: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
+    let metadata =
+        std::fs::metadata(path).map_err(|e| format!("{}: cannot open: {e}", path.display()))?;
+    if !metadata.is_dir() {
+        files.push(path.to_path_buf());
+        return Ok(());
+    }
+    let before = files.len();
+    walk(path, files)?;
+    if files.len() == before {
+        return Err(format!(
+            "{}: no *.csv query file in this folder",
+            path.display()
+        ));
+    }
+    Ok(())
+}
+
+fn walk(dir: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
+    let read_error = |e: std::io::Error| format!("{}: cannot list: {e}", dir.display());
+    let mut entries = std::fs::read_dir(dir)
+        .map_err(read_error)?
+        .map(|entry| entry.map(|e| e.path()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(read_error)?;
+    // Byte order of the names: the same on every machine, unlike the order of read_dir.
+    entries.sort();
+    for entry in entries {
+        if entry.is_dir() {
+            walk(&entry, files)?;
+        } else if entry.extension().is_some_and(|e| e == "csv") {
+            files.push(entry);
+        }
+    }
+    Ok(())
+}
+
+/// The kind of a file's queries, from the name of its folder.
+fn kind_of(path: &Path) -> Result<Kind, String> {
+    let folder = path
+        .parent()
+        .and_then(|p| p.file_name())
+        .and_then(|n| n.to_str());
+    match folder {
+        Some("vertex-face") => Ok(Kind::VertexFace),
+        Some("edge-edge") => Ok(Kind::EdgeEdge),
+        _ => Err(format!(
+            "{}: cannot tell the query kind: the file's folder must be named vertex-face or edge-edge",
+            path.display()
+        )),
+    }
+}
+
+/// Counts and timing of one file.
+struct Report {
+    queries: usize,
+    positives: usize,
+    false_negatives: usize,
+    false_positives: usize,
+    ns_per_query: f64,
+}
+
+impl Report {
+    fn to_json(&self, file: &str, kind: Kind) -> String {
+        format!(
+            "{{\"file\":{},\"kind\":\"{}\",\"queries\":{},\"positives\":{},\"false_negatives\":{},\"false_positives\":{},\"ns_per_query\":{:.1}}}",
+            json_string(file),
+            kind.name(),
+            self.queries,
+            self.positives,
+            self.false_negatives,
+            self.false_positives,
+            self.ns_per_query
+        )
+    }
+}
+
+fn detect(kind: Kind, q: &Query, settings: &CcdSettings) -> bool {
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = &q.points;
+    match kind {
+        Kind::VertexFace => {
+            vertex_face_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings).is_some()
+        }
+        Kind::EdgeEdge => {
+            edge_edge_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings).is_some()
+        }
+    }
+}
+
+fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> Report {
+    let mut report = Report {
+        queries: queries.len(),
+        positives: 0,
+        false_negatives: 0,
+        false_positives: 0,
+        ns_per_query: 0.0,
+    };
+    for q in queries {
+        let hit = detect(kind, q, settings);
+        report.positives += usize::from(q.truth);
+        report.false_negatives += usize::from(q.truth && !hit);
+        report.false_positives += usize::from(!q.truth && hit);
+    }
+    if queries.is_empty() {
+        return report;
+    }
+    let mut calls = 0usize;
+    let start = Instant::now();
+    loop {
+        let mut found = 0usize;
+        for q in queries {
+            found += usize::from(detect(kind, std::hint::black_box(q), settings));
+        }
+        std::hint::black_box(found);
+        calls += queries.len();
+        if start.elapsed() >= MIN_TIMING {
+            break;
+        }
+    }
+    report.ns_per_query = start.elapsed().as_nanos() as f64 / calls as f64;
+    report
+}
+
+/// A JSON string literal.
+fn json_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if u32::from(c) < 0x20 => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
