@@ -49,6 +49,41 @@ enum Command {
         /// Scene file (TOML); the embedded default scene when omitted.
         scene: Option<PathBuf>,
     },
+    /// Run the 1 kHz simulation daemon: tool poses in, feedback and mesh deltas out, over iceoryx2.
+    #[cfg(feature = "ipc")]
+    Serve(ServeArgs),
+}
+
+/// Options of `palpa serve`.
+#[cfg(feature = "ipc")]
+#[derive(clap::Args)]
+struct ServeArgs {
+    /// Scene file (TOML); the embedded default scene when omitted.
+    scene: Option<PathBuf>,
+    /// Prefix of every service name, so rigs and tests never collide.
+    #[arg(long, default_value = "palpa")]
+    prefix: String,
+    /// Stop after this many simulated seconds.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Step once per received pose instead of by the clock (tests, replay, pure-compute benchmarks).
+    #[arg(long)]
+    lockstep: bool,
+    /// Ask for SCHED_FIFO, locked memory and a pinned core (falls back with a warning).
+    #[arg(long)]
+    rt: bool,
+    /// Mesh messages per second.
+    #[arg(long, default_value_t = 60.0)]
+    display_rate: f64,
+    /// Seconds between periodic mesh keyframes.
+    #[arg(long, default_value_t = 2.0)]
+    keyframe_every: f64,
+    /// Fastest believable tool motion (m/s); faster jumps are rejected.
+    #[arg(long, default_value_t = 10.0)]
+    max_speed: f64,
+    /// Milliseconds without a good pose before a tool is marked disconnected.
+    #[arg(long, default_value_t = 100)]
+    stale_after_ms: u64,
 }
 
 fn main() -> Result<()> {
@@ -68,6 +103,8 @@ fn main() -> Result<()> {
             feedback.as_deref(),
         ),
         Command::Check { scene } => check(scene.as_deref()),
+        #[cfg(feature = "ipc")]
+        Command::Serve(args) => serve(args),
     }
 }
 
@@ -175,6 +212,75 @@ fn run(
     if world.bodies.iter().any(|b| !b.is_finite()) {
         bail!("the simulation diverged; run `palpa check` on the scene for its stability margin");
     }
+    Ok(())
+}
+
+#[cfg(feature = "ipc")]
+fn serve(args: ServeArgs) -> Result<()> {
+    use palpa::daemon::input::InputLimits;
+    use palpa::daemon::serve::{ServeOptions, serve};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    let scene = scene_from(args.scene.as_deref())?;
+    if let Some(d) = args.duration
+        && !(d.is_finite() && d >= 0.0)
+    {
+        bail!("--duration must be a finite number of seconds ≥ 0, found {d}");
+    }
+    if !(args.display_rate.is_finite() && args.display_rate > 0.0) {
+        bail!("--display-rate must be > 0");
+    }
+    let options = ServeOptions {
+        prefix: args.prefix.clone(),
+        duration: args.duration,
+        lockstep: args.lockstep,
+        realtime: args.rt,
+        display_rate_hz: args.display_rate,
+        keyframe_every_s: args.keyframe_every,
+        limits: InputLimits {
+            max_speed: args.max_speed,
+            stale_after_ticks: (args.stale_after_ms as f64 * 1e-3 / scene.world.dt).round() as u64,
+            ..InputLimits::default()
+        },
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_stop = stop.clone();
+    ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
+        .context("cannot install the Ctrl-C/SIGTERM handler")?;
+    let world = World::from_scene(&scene);
+    let tools: Vec<&str> = world
+        .tools
+        .iter()
+        .filter(|t| matches!(t.input, palpa::tool::ToolInput::Ipc))
+        .map(|t| t.name.as_str())
+        .collect();
+    println!(
+        "palpa serve: {} — prefix \"{}\", {} mode, tools over IPC: [{}]",
+        scene.name,
+        args.prefix,
+        if args.lockstep { "lockstep" } else { "real-time 1 kHz" },
+        tools.join(", ")
+    );
+    println!("  systems: {}", world.systems().names().join(", "));
+    drop(world);
+    let sim_stop = stop.clone();
+    let handle = std::thread::Builder::new()
+        .name("palpa-sim".into())
+        .spawn(move || serve(&scene, &options, sim_stop).map_err(|e| e.to_string()))
+        .context("cannot start the simulation thread")?;
+    let summary = handle
+        .join()
+        .map_err(|_| anyhow::anyhow!("the simulation thread panicked"))?
+        .map_err(|e| anyhow::anyhow!("palpa serve: {e}"))?;
+    println!(
+        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, max tick {:.1} µs",
+        summary.ticks,
+        summary.synchronicity_misses,
+        summary.rejected_inputs,
+        summary.disconnects,
+        summary.compute_max_us
+    );
     Ok(())
 }
 

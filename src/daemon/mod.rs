@@ -1,4 +1,7 @@
-//! The daemon's parts that do not depend on the transport: input hygiene and loop statistics.
+//! The daemon: input hygiene and loop statistics (independent of the transport), and with the `ipc`
+//! feature the 1 kHz loop over iceoryx2 ([`serve`](serve::serve)).
 
 pub mod input;
+#[cfg(feature = "ipc")]
+pub mod serve;
 pub mod stats;

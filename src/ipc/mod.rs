@@ -2,3 +2,5 @@
 //! with the `ipc` feature, the iceoryx2 services of the daemon.
 
 pub mod payload;
+#[cfg(feature = "ipc")]
+pub mod services;

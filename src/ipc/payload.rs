@@ -2,6 +2,9 @@
 //! pointers, the same size, alignment and field offsets as the C header (tests/ipc_layout.rs checks
 //! all three against a C compiler). The iceoryx2 type names are the C type names.
 
+#[cfg(feature = "ipc")]
+use iceoryx2::prelude::ZeroCopySend;
+
 /// iceoryx2 type name of [`ToolPoseV1`].
 pub const TOOL_POSE_TYPE_NAME: &str = "palpa_tool_pose_v1";
 /// iceoryx2 type name of [`ToolFeedbackV1`].
@@ -18,6 +21,7 @@ pub const MESH_HEADER_TYPE_NAME: &str = "palpa_mesh_header_v1";
 /// A tool pose sent by a device bridge (`palpa_tool_pose_v1`, 88 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_tool_pose_v1"))]
 pub struct ToolPoseV1 {
     /// Strictly increasing per bridge run.
     pub seq: u64,
@@ -47,6 +51,7 @@ pub const FEEDBACK_REJECTED: u32 = 8;
 /// The daemon's answer to a pose (`palpa_tool_feedback_v1`, 80 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_tool_feedback_v1"))]
 pub struct ToolFeedbackV1 {
     /// `seq` of the pose this answers (0 before any pose).
     pub seq: u64,
@@ -82,6 +87,7 @@ pub const SYSTEM_BODY_CONTACT: u32 = 1 << 6;
 /// Loop statistics over a one-second window (`palpa_stats_v1`, 104 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_stats_v1"))]
 pub struct StatsV1 {
     /// Last tick of the window.
     pub tick: u64,
@@ -127,6 +133,7 @@ pub const CONTROL_KEYFRAME: u32 = 4;
 /// A control request (`palpa_control_request_v1`, 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_control_request_v1"))]
 pub struct ControlRequestV1 {
     /// `CONTROL_*`.
     pub command: u32,
@@ -139,6 +146,7 @@ pub struct ControlRequestV1 {
 /// The answer to a control request (`palpa_control_response_v1`, 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_control_response_v1"))]
 pub struct ControlResponseV1 {
     /// Echoed.
     pub command: u32,
@@ -157,6 +165,7 @@ pub const MESH_DELTA: u32 = 1;
 /// is laid out as `proto/palpa_ipc.h` says.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_mesh_header_v1"))]
 pub struct MeshHeaderV1 {
     /// `MESH_KEYFRAME` or `MESH_DELTA`.
     pub kind: u32,

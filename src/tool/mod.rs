@@ -330,6 +330,17 @@ impl Tool {
         self.target = Some((pose, jaw));
     }
 
+    /// Takes an externally driven tool out of the scene (its bridge went quiet): it touches nothing
+    /// and releases what it held, until a new pose makes it appear again.
+    pub fn deactivate(&mut self) {
+        if matches!(self.input, ToolInput::Ipc) {
+            self.active = false;
+            self.target = None;
+            self.place();
+            self.parts_start = self.parts_end;
+        }
+    }
+
     /// Begins a tick ending at time `t_end`: the current pose becomes the start, the new pose comes
     /// from the script or the last external target (held when none arrived).
     pub fn begin_tick(&mut self, t_end: f64) {

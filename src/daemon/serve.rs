@@ -1,0 +1,355 @@
+//! `palpa serve`: the 1 kHz simulation loop over shared memory.
+//!
+//! One named thread owns everything (iceoryx2 ports are not `Send`): it creates the services, then
+//! ticks on absolute deadlines — sleep to shortly before the deadline, spin the rest — or, in lockstep,
+//! once per received pose. Each tick: control requests; the newest pose of every externally driven
+//! tool, checked ([`ToolInputState`]); the world step; feedback per tool; at display rate, a mesh
+//! keyframe or delta per body; once per simulated second, the statistics. The tick allocates
+//! nothing, takes no lock, writes no file and logs nothing; its compute time and wake-up lateness are
+//! measured, and a tick whose compute exceeds the period is a synchronicity miss, counted and
+//! published.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use crate::daemon::input::{InputLimits, ToolInputState};
+use crate::daemon::stats::LoopStats;
+use crate::display::{MeshEncoder, max_message_bytes};
+use crate::ipc::payload::*;
+use crate::ipc::services::*;
+use crate::scene::Scene;
+use crate::tool::ToolInput;
+use crate::world::World;
+
+/// How the daemon runs.
+#[derive(Clone, Debug)]
+pub struct ServeOptions {
+    /// Service name prefix.
+    pub prefix: String,
+    /// Stop after this many simulated seconds (`None`: until stopped).
+    pub duration: Option<f64>,
+    /// Step once per received pose instead of by the clock.
+    pub lockstep: bool,
+    /// Ask for SCHED_FIFO, locked memory and a pinned core.
+    pub realtime: bool,
+    /// Mesh messages per second.
+    pub display_rate_hz: f64,
+    /// Seconds between periodic keyframes.
+    pub keyframe_every_s: f64,
+    /// Input checks.
+    pub limits: InputLimits,
+}
+
+impl Default for ServeOptions {
+    fn default() -> Self {
+        Self {
+            prefix: "palpa".into(),
+            duration: None,
+            lockstep: false,
+            realtime: false,
+            display_rate_hz: 60.0,
+            keyframe_every_s: 2.0,
+            limits: InputLimits::default(),
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ServeSummary {
+    /// Ticks stepped.
+    pub ticks: u64,
+    /// Ticks whose compute exceeded the period.
+    pub synchronicity_misses: u64,
+    /// Poses rejected.
+    pub rejected_inputs: u64,
+    /// Tools that went stale.
+    pub disconnects: u64,
+    /// Largest tick compute time (µs).
+    pub compute_max_us: f64,
+}
+
+/// Applies the real-time requests one by one; returns a warning for each that was not granted.
+fn setup_realtime() -> Vec<String> {
+    let mut warnings = Vec::new();
+    // SAFETY: plain system calls on the calling thread with valid arguments.
+    unsafe {
+        let param = libc::sched_param { sched_priority: 80 };
+        if libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) != 0 {
+            warnings.push(format!(
+                "SCHED_FIFO not granted ({}); running with the normal scheduler",
+                std::io::Error::last_os_error()
+            ));
+        }
+        if libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) != 0 {
+            warnings.push(format!("memory not locked ({})", std::io::Error::last_os_error()));
+        }
+        let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cores - 1, &mut set);
+        if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0 {
+            warnings.push(format!("not pinned to core {} ({})", cores - 1, std::io::Error::last_os_error()));
+        }
+    }
+    warnings
+}
+
+fn active_system_bits(world: &World) -> u32 {
+    let s = world.systems();
+    let mut bits = 0;
+    for (on, bit) in [
+        (s.gravity, SYSTEM_GRAVITY),
+        (s.air_viscosity, SYSTEM_AIR_VISCOSITY),
+        (s.obstacle_contact, SYSTEM_OBSTACLE_CONTACT),
+        (s.obstacle_friction, SYSTEM_OBSTACLE_FRICTION),
+        (s.rigid_motion, SYSTEM_RIGID_COMPONENTS),
+        (s.tool_contact, SYSTEM_TOOL_CONTACT),
+        (s.body_contact, SYSTEM_BODY_CONTACT),
+    ] {
+        if on {
+            bits |= bit;
+        }
+    }
+    bits
+}
+
+fn new_encoders(world: &World) -> Vec<MeshEncoder> {
+    world
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(i, b)| MeshEncoder::new(i as u32, b.node_count()))
+        .collect()
+}
+
+/// Runs the daemon on the calling thread until `stop` is set or the duration is reached.
+pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Result<ServeSummary, IpcError> {
+    if options.realtime {
+        for warning in setup_realtime() {
+            eprintln!("palpa serve: warning: {warning}");
+        }
+    }
+    let node = create_node()?;
+    let mut world = World::from_scene(scene);
+    let dt = world.params.dt;
+
+    // Ports of the externally driven tools, by tool index.
+    let mut pose_subscribers = Vec::new();
+    let mut feedback_publishers = Vec::new();
+    let mut ipc_tools = Vec::new();
+    for (index, tool) in world.tools.iter().enumerate() {
+        if matches!(tool.input, ToolInput::Ipc) {
+            let pose = pose_service(&node, &options.prefix, &tool.name)?;
+            let feedback = feedback_service(&node, &options.prefix, &tool.name)?;
+            pose_subscribers.push(pose.subscriber_builder().create()?);
+            let publisher = feedback.publisher_builder().create()?;
+            publisher.send_copy(ToolFeedbackV1 {
+                flags: FEEDBACK_STALE,
+                ..ToolFeedbackV1::default()
+            })?;
+            feedback_publishers.push(publisher);
+            ipc_tools.push(index);
+        }
+    }
+    let mut inputs = vec![ToolInputState::default(); ipc_tools.len()];
+    let mut echo = vec![(0u64, 0u64); ipc_tools.len()];
+
+    let stats_publisher = stats_service(&node, &options.prefix)?.publisher_builder().create()?;
+    let mesh_bytes = world
+        .bodies
+        .iter()
+        .map(|b| max_message_bytes(b.node_count(), b.surface.triangles.len()))
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    let mesh_publisher = mesh_service(&node, &options.prefix)?
+        .publisher_builder()
+        .initial_max_slice_len(mesh_bytes)
+        .create()?;
+    let control_server = control_service(&node, &options.prefix)?.server_builder().create()?;
+
+    let mut encoders = new_encoders(&world);
+    let mut mesh_scratch = vec![0u8; mesh_bytes];
+    let display_every = ((1.0 / (options.display_rate_hz.max(1e-3) * dt)).round() as u64).max(1);
+    let keyframe_every = ((options.keyframe_every_s / dt).round() as u64).max(1);
+    let mut keyframe_requested = true;
+
+    let max_ticks = options.duration.map(|d| (d / dt).round() as u64);
+    let period = Duration::from_secs_f64(dt);
+    let period_us = dt * 1e6;
+    let mut stats = LoopStats::default();
+    let mut stats_out = StatsV1::default();
+    let mut summary = ServeSummary::default();
+    let mut paused = false;
+    let mut deadline = Instant::now() + period;
+    let spin = Duration::from_micros(200);
+
+    loop {
+        if stop.load(Ordering::Relaxed) || max_ticks.is_some_and(|m| world.tick >= m) {
+            break;
+        }
+        // Wait for this tick's turn.
+        let lateness_us;
+        if options.lockstep && !ipc_tools.is_empty() {
+            'wait: loop {
+                if stop.load(Ordering::Relaxed) {
+                    break 'wait;
+                }
+                if pose_subscribers.iter().any(|s| s.has_samples().unwrap_or(false)) {
+                    break 'wait;
+                }
+                std::thread::sleep(Duration::from_micros(20));
+            }
+            if stop.load(Ordering::Relaxed) {
+                break;
+            }
+            lateness_us = 0.0;
+        } else {
+            let now = Instant::now();
+            if deadline > now + spin {
+                std::thread::sleep(deadline - now - spin);
+            }
+            while Instant::now() < deadline {
+                std::hint::spin_loop();
+            }
+            lateness_us = Instant::now().saturating_duration_since(deadline).as_secs_f64() * 1e6;
+        }
+        let started = Instant::now();
+
+        // Control.
+        while let Some(request) = control_server.receive()? {
+            let command = request.payload().command;
+            let status = match command {
+                CONTROL_RESET => {
+                    world = World::from_scene(scene);
+                    encoders = new_encoders(&world);
+                    for input in &mut inputs {
+                        *input = ToolInputState::default();
+                    }
+                    keyframe_requested = true;
+                    0
+                }
+                CONTROL_PAUSE => {
+                    paused = true;
+                    0
+                }
+                CONTROL_RESUME => {
+                    paused = false;
+                    0
+                }
+                CONTROL_KEYFRAME => {
+                    keyframe_requested = true;
+                    0
+                }
+                _ => -1,
+            };
+            request.send_copy(ControlResponseV1 {
+                command,
+                status,
+                tick: world.tick,
+            })?;
+        }
+
+        // Newest pose of every external tool.
+        for (k, &tool_index) in ipc_tools.iter().enumerate() {
+            let mut newest = None;
+            while let Some(sample) = pose_subscribers[k].receive()? {
+                newest = Some(*sample.payload());
+            }
+            inputs[k].rejected_this_tick = false;
+            if let Some(pose) = newest
+                && let Ok((tool_pose, jaw)) = inputs[k].offer(&pose, world.tick, dt, &options.limits)
+            {
+                world.tools[tool_index].set_target(tool_pose, jaw);
+                echo[k] = (pose.seq, pose.device_time_ns);
+            }
+            if inputs[k].update_staleness(world.tick, &options.limits) {
+                world.tools[tool_index].deactivate();
+            }
+        }
+
+        if !paused {
+            world.step();
+        }
+
+        // Feedback.
+        for (k, &tool_index) in ipc_tools.iter().enumerate() {
+            let feedback = &world.tools[tool_index].feedback;
+            let connected = inputs[k].connected;
+            let mut flags = 0;
+            if !connected {
+                flags |= FEEDBACK_STALE;
+            }
+            if feedback.clamped {
+                flags |= FEEDBACK_CLAMPED;
+            }
+            if inputs[k].rejected_this_tick {
+                flags |= FEEDBACK_REJECTED;
+            }
+            let (force, torque) = if connected {
+                (feedback.force_in_world, feedback.torque_in_world)
+            } else {
+                (crate::Vec3::zeros(), crate::Vec3::zeros())
+            };
+            let finite = force.iter().chain(torque.iter()).all(|x| x.is_finite());
+            feedback_publishers[k].send_copy(ToolFeedbackV1 {
+                seq: echo[k].0,
+                device_time_ns: echo[k].1,
+                tick: world.tick,
+                force: if finite { force.into() } else { [0.0; 3] },
+                torque: if finite { torque.into() } else { [0.0; 3] },
+                contacts: feedback.contacts,
+                flags: if finite { flags } else { flags | FEEDBACK_DIVERGED },
+            })?;
+        }
+
+        // Display.
+        if world.tick % display_every == 0 || keyframe_requested {
+            let keyframe = keyframe_requested || world.tick % keyframe_every == 0;
+            for (encoder, body) in encoders.iter_mut().zip(&world.bodies) {
+                let s = &body.surface;
+                let header = if keyframe {
+                    encoder.keyframe(world.tick, &s.position_in_world, &s.triangles, &mut mesh_scratch)
+                } else {
+                    encoder.delta(world.tick, &s.position_in_world, &mut mesh_scratch)
+                };
+                let length = header.payload_bytes as usize;
+                let mut sample = mesh_publisher.loan_slice_uninit(length)?;
+                *sample.user_header_mut() = header;
+                sample.write_from_slice(&mesh_scratch[..length]).send()?;
+            }
+            keyframe_requested = false;
+        }
+
+        // Statistics.
+        let compute_us = started.elapsed().as_secs_f64() * 1e6;
+        stats.record(compute_us, lateness_us, period_us);
+        summary.compute_max_us = summary.compute_max_us.max(compute_us);
+        if stats.window_ticks() >= 1000 {
+            stats.close_window(&mut stats_out);
+            stats_out.tick = world.tick;
+            stats_out.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
+            stats_out.disconnects = inputs.iter().map(|i| i.disconnects).sum();
+            stats_out.active_systems = active_system_bits(&world);
+            stats_out.tools_connected = ipc_tools
+                .iter()
+                .zip(&inputs)
+                .filter(|(_, i)| i.connected)
+                .fold(0u32, |bits, (&t, _)| bits | (1u32 << t.min(31)));
+            stats_out.paused = paused as u32;
+            stats_publisher.send_copy(stats_out)?;
+        }
+        summary.ticks += 1;
+        deadline += period;
+        let now = Instant::now();
+        if now > deadline + period * 10 {
+            // Far behind (a stall): start again from now rather than racing through missed deadlines.
+            deadline = now + period;
+        }
+    }
+    summary.synchronicity_misses = stats.synchronicity_misses;
+    summary.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
+    summary.disconnects = inputs.iter().map(|i| i.disconnects).sum();
+    Ok(summary)
+}

@@ -1,0 +1,126 @@
+//! The iceoryx2 services of the daemon (`proto/palpa_ipc.h`): names under a prefix, and the one set of
+//! service settings every side uses, so a bridge that opens a service asks for exactly what the daemon
+//! created. Daemon and clients both call these builders (`open_or_create`); settings that must agree
+//! (history 1, subscriber buffer 1, safe overflow for the latest-value streams) are fixed here.
+
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{publish_subscribe, request_response};
+
+use crate::ipc::payload::{
+    ControlRequestV1, ControlResponseV1, MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1,
+};
+
+/// Any iceoryx2 error, boxed: services are set up once, errors are reported where handled.
+pub type IpcError = Box<dyn core::error::Error>;
+
+/// Name of a tool's pose service.
+pub fn pose_service_name(prefix: &str, tool: &str) -> String {
+    format!("{prefix}/tool/{tool}/pose")
+}
+
+/// Name of a tool's feedback service.
+pub fn feedback_service_name(prefix: &str, tool: &str) -> String {
+    format!("{prefix}/tool/{tool}/feedback")
+}
+
+/// Name of the mesh stream.
+pub fn mesh_service_name(prefix: &str) -> String {
+    format!("{prefix}/display/mesh")
+}
+
+/// Name of the statistics stream.
+pub fn stats_service_name(prefix: &str) -> String {
+    format!("{prefix}/stats")
+}
+
+/// Name of the control service.
+pub fn control_service_name(prefix: &str) -> String {
+    format!("{prefix}/control")
+}
+
+/// A node for this process, with iceoryx2's own logging limited to errors.
+pub fn create_node() -> Result<Node<ipc::Service>, IpcError> {
+    set_log_level(LogLevel::Error);
+    Ok(NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()?)
+}
+
+fn service_name(name: &str) -> Result<ServiceName, IpcError> {
+    Ok(ServiceName::new(name)?)
+}
+
+/// A latest-value stream: history 1, subscriber buffer 1, safe overflow (the newest sample wins).
+fn latest_value<T: core::fmt::Debug + ZeroCopySend>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<publish_subscribe::PortFactory<ipc::Service, T, ()>, IpcError> {
+    Ok(node
+        .service_builder(&service_name(name)?)
+        .publish_subscribe::<T>()
+        .history_size(1)
+        .subscriber_max_buffer_size(1)
+        .enable_safe_overflow(true)
+        .open_or_create()?)
+}
+
+/// The pose service of a tool.
+pub fn pose_service(
+    node: &Node<ipc::Service>,
+    prefix: &str,
+    tool: &str,
+) -> Result<publish_subscribe::PortFactory<ipc::Service, ToolPoseV1, ()>, IpcError> {
+    latest_value(node, &pose_service_name(prefix, tool))
+}
+
+/// The feedback service of a tool.
+pub fn feedback_service(
+    node: &Node<ipc::Service>,
+    prefix: &str,
+    tool: &str,
+) -> Result<publish_subscribe::PortFactory<ipc::Service, ToolFeedbackV1, ()>, IpcError> {
+    latest_value(node, &feedback_service_name(prefix, tool))
+}
+
+/// The statistics stream.
+pub fn stats_service(
+    node: &Node<ipc::Service>,
+    prefix: &str,
+) -> Result<publish_subscribe::PortFactory<ipc::Service, StatsV1, ()>, IpcError> {
+    latest_value(node, &stats_service_name(prefix))
+}
+
+/// Messages a display may hold unread before the oldest is overwritten.
+pub const MESH_BUFFER: usize = 16;
+
+/// The mesh stream: byte slices with a [`MeshHeaderV1`] user header; a buffer of
+/// [`MESH_BUFFER`] messages with safe overflow (a slow display loses the oldest and resynchronises
+/// on the next keyframe), history of one message per body is not kept: late joiners ask for a
+/// keyframe or wait for the periodic one.
+pub fn mesh_service(
+    node: &Node<ipc::Service>,
+    prefix: &str,
+) -> Result<publish_subscribe::PortFactory<ipc::Service, [u8], MeshHeaderV1>, IpcError> {
+    Ok(node
+        .service_builder(&service_name(&mesh_service_name(prefix))?)
+        .publish_subscribe::<[u8]>()
+        .user_header::<MeshHeaderV1>()
+        .history_size(0)
+        .subscriber_max_buffer_size(MESH_BUFFER)
+        .enable_safe_overflow(true)
+        .open_or_create()?)
+}
+
+/// The control service.
+pub fn control_service(
+    node: &Node<ipc::Service>,
+    prefix: &str,
+) -> Result<
+    request_response::PortFactory<ipc::Service, ControlRequestV1, (), ControlResponseV1, ()>,
+    IpcError,
+> {
+    Ok(node
+        .service_builder(&service_name(&control_service_name(prefix))?)
+        .request_response::<ControlRequestV1, ControlResponseV1>()
+        .open_or_create()?)
+}
