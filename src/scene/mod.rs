@@ -219,6 +219,17 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
     })
 }
 
+/// Reads a motion script file: a TOML document with one key, `script = [{ t, position, orientation,
+/// jaw }, ...]`, in the format of a scene tool's `script` (used by `palpa-device --script`).
+pub fn parse_script(text: &str, name: &str) -> Result<Vec<Keyframe>, SceneError> {
+    let ctx = Ctx { text, name };
+    let file: ScriptFile = toml::from_str(text).map_err(|e| {
+        let span = e.span().unwrap_or(0..0);
+        ctx.error(span, e.message().trim_end().to_string())
+    })?;
+    ctx.script(&file.script)
+}
+
 /// What a number must satisfy.
 #[derive(Clone, Copy)]
 enum Rule {

@@ -171,3 +171,9 @@ pub(super) struct KeyframeSection {
     pub orientation: Option<Spanned<[f64; 4]>>,
     pub jaw: Option<Spanned<f64>>,
 }
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ScriptFile {
+    pub script: Spanned<Vec<Spanned<KeyframeSection>>>,
+}
