@@ -259,7 +259,11 @@ fn serve(args: ServeArgs) -> Result<()> {
         "palpa serve: {} — prefix \"{}\", {} mode, tools over IPC: [{}]",
         scene.name,
         args.prefix,
-        if args.lockstep { "lockstep" } else { "real-time 1 kHz" },
+        if args.lockstep {
+            "lockstep"
+        } else {
+            "real-time 1 kHz"
+        },
         tools.join(", ")
     );
     println!("  systems: {}", world.systems().names().join(", "));

@@ -13,6 +13,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use iceoryx2::port::update_connections::UpdateConnections;
+
 use crate::daemon::input::{InputLimits, ToolInputState};
 use crate::daemon::stats::LoopStats;
 use crate::display::{MeshEncoder, max_message_bytes};
@@ -83,13 +85,20 @@ fn setup_realtime() -> Vec<String> {
             ));
         }
         if libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) != 0 {
-            warnings.push(format!("memory not locked ({})", std::io::Error::last_os_error()));
+            warnings.push(format!(
+                "memory not locked ({})",
+                std::io::Error::last_os_error()
+            ));
         }
         let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
         let mut set: libc::cpu_set_t = std::mem::zeroed();
         libc::CPU_SET(cores - 1, &mut set);
         if libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) != 0 {
-            warnings.push(format!("not pinned to core {} ({})", cores - 1, std::io::Error::last_os_error()));
+            warnings.push(format!(
+                "not pinned to core {} ({})",
+                cores - 1,
+                std::io::Error::last_os_error()
+            ));
         }
     }
     warnings
@@ -124,7 +133,11 @@ fn new_encoders(world: &World) -> Vec<MeshEncoder> {
 }
 
 /// Runs the daemon on the calling thread until `stop` is set or the duration is reached.
-pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Result<ServeSummary, IpcError> {
+pub fn serve(
+    scene: &Scene,
+    options: &ServeOptions,
+    stop: Arc<AtomicBool>,
+) -> Result<ServeSummary, IpcError> {
     if options.realtime {
         for warning in setup_realtime() {
             eprintln!("palpa serve: warning: {warning}");
@@ -155,7 +168,9 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
     let mut inputs = vec![ToolInputState::default(); ipc_tools.len()];
     let mut echo = vec![(0u64, 0u64); ipc_tools.len()];
 
-    let stats_publisher = stats_service(&node, &options.prefix)?.publisher_builder().create()?;
+    let stats_publisher = stats_service(&node, &options.prefix)?
+        .publisher_builder()
+        .create()?;
     let mesh_bytes = world
         .bodies
         .iter()
@@ -167,7 +182,9 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
         .publisher_builder()
         .initial_max_slice_len(mesh_bytes)
         .create()?;
-    let control_server = control_service(&node, &options.prefix)?.server_builder().create()?;
+    let control_server = control_service(&node, &options.prefix)?
+        .server_builder()
+        .create()?;
 
     let mut encoders = new_encoders(&world);
     let mut mesh_scratch = vec![0u8; mesh_bytes];
@@ -192,12 +209,24 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
         // Wait for this tick's turn.
         let lateness_us;
         if options.lockstep && !ipc_tools.is_empty() {
+            let mut polls = 0u32;
             'wait: loop {
                 if stop.load(Ordering::Relaxed) {
                     break 'wait;
                 }
-                if pose_subscribers.iter().any(|s| s.has_samples().unwrap_or(false)) {
+                if pose_subscribers
+                    .iter()
+                    .any(|s| s.has_samples().unwrap_or(false))
+                {
                     break 'wait;
+                }
+                // While idle, let late subscribers (a bridge that starts after us) receive the last
+                // feedback, so they can tell the daemon is up.
+                polls += 1;
+                if polls % 500 == 0 {
+                    for publisher in &feedback_publishers {
+                        publisher.update_connections()?;
+                    }
                 }
                 std::thread::sleep(Duration::from_micros(20));
             }
@@ -213,7 +242,10 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
             while Instant::now() < deadline {
                 std::hint::spin_loop();
             }
-            lateness_us = Instant::now().saturating_duration_since(deadline).as_secs_f64() * 1e6;
+            lateness_us = Instant::now()
+                .saturating_duration_since(deadline)
+                .as_secs_f64()
+                * 1e6;
         }
         let started = Instant::now();
 
@@ -259,7 +291,8 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
             }
             inputs[k].rejected_this_tick = false;
             if let Some(pose) = newest
-                && let Ok((tool_pose, jaw)) = inputs[k].offer(&pose, world.tick, dt, &options.limits)
+                && let Ok((tool_pose, jaw)) =
+                    inputs[k].offer(&pose, world.tick, dt, &options.limits)
             {
                 world.tools[tool_index].set_target(tool_pose, jaw);
                 echo[k] = (pose.seq, pose.device_time_ns);
@@ -300,7 +333,11 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
                 force: if finite { force.into() } else { [0.0; 3] },
                 torque: if finite { torque.into() } else { [0.0; 3] },
                 contacts: feedback.contacts,
-                flags: if finite { flags } else { flags | FEEDBACK_DIVERGED },
+                flags: if finite {
+                    flags
+                } else {
+                    flags | FEEDBACK_DIVERGED
+                },
             })?;
         }
 
@@ -310,7 +347,12 @@ pub fn serve(scene: &Scene, options: &ServeOptions, stop: Arc<AtomicBool>) -> Re
             for (encoder, body) in encoders.iter_mut().zip(&world.bodies) {
                 let s = &body.surface;
                 let header = if keyframe {
-                    encoder.keyframe(world.tick, &s.position_in_world, &s.triangles, &mut mesh_scratch)
+                    encoder.keyframe(
+                        world.tick,
+                        &s.position_in_world,
+                        &s.triangles,
+                        &mut mesh_scratch,
+                    )
                 } else {
                     encoder.delta(world.tick, &s.position_in_world, &mut mesh_scratch)
                 };

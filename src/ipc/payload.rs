@@ -51,7 +51,11 @@ pub const FEEDBACK_REJECTED: u32 = 8;
 /// The daemon's answer to a pose (`palpa_tool_feedback_v1`, 80 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_tool_feedback_v1"))]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("palpa_tool_feedback_v1")
+)]
 pub struct ToolFeedbackV1 {
     /// `seq` of the pose this answers (0 before any pose).
     pub seq: u64,
@@ -133,7 +137,11 @@ pub const CONTROL_KEYFRAME: u32 = 4;
 /// A control request (`palpa_control_request_v1`, 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_control_request_v1"))]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("palpa_control_request_v1")
+)]
 pub struct ControlRequestV1 {
     /// `CONTROL_*`.
     pub command: u32,
@@ -146,7 +154,11 @@ pub struct ControlRequestV1 {
 /// The answer to a control request (`palpa_control_response_v1`, 16 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_control_response_v1"))]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("palpa_control_response_v1")
+)]
 pub struct ControlResponseV1 {
     /// Echoed.
     pub command: u32,
@@ -165,7 +177,11 @@ pub const MESH_DELTA: u32 = 1;
 /// is laid out as `proto/palpa_ipc.h` says.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_mesh_header_v1"))]
+#[cfg_attr(
+    feature = "ipc",
+    derive(ZeroCopySend),
+    type_name("palpa_mesh_header_v1")
+)]
 pub struct MeshHeaderV1 {
     /// `MESH_KEYFRAME` or `MESH_DELTA`.
     pub kind: u32,

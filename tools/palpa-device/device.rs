@@ -125,6 +125,7 @@ impl Device {
 
     /// The position the encoders report: each coordinate rounded to the resolution.
     pub fn measured_position(&self) -> Vec3 {
-        self.position.map(|x| (x / self.spec.resolution).round() * self.spec.resolution)
+        self.position
+            .map(|x| (x / self.spec.resolution).round() * self.spec.resolution)
     }
 }

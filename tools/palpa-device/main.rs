@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::{Parser, ValueEnum};
+use iceoryx2::port::update_connections::UpdateConnections;
 use palpa::Vec3;
 use palpa::ipc::payload::{ToolFeedbackV1, ToolPoseV1};
 use palpa::ipc::services::{create_node, feedback_service, pose_service};
@@ -45,7 +46,11 @@ enum Motion {
 }
 
 #[derive(Parser)]
-#[command(name = "palpa-device", version, about = "Simulated haptic device for palpa")]
+#[command(
+    name = "palpa-device",
+    version,
+    about = "Simulated haptic device for palpa"
+)]
 struct Args {
     /// Service name prefix of the daemon.
     #[arg(long, default_value = "palpa")]
@@ -63,7 +68,7 @@ struct Args {
     #[arg(long)]
     script: Option<PathBuf>,
     /// Surface point the built-in motions work at, "x,y,z" in metres (the default scene's organ top).
-    #[arg(long, default_value = "0.0,0.0,0.066", value_parser = parse_point)]
+    #[arg(long, default_value = "0.0,0.0,0.0645", value_parser = parse_point)]
     at: Vec3,
     /// Seconds to run.
     #[arg(long, default_value_t = 5.0)]
@@ -77,6 +82,9 @@ struct Args {
     /// Write a JSON summary here.
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Write one CSV row per pose sent: `seq,t,x,y,z,fx,fy,fz,contacts,flags` (the last feedback seen).
+    #[arg(long)]
+    trace: Option<PathBuf>,
 }
 
 fn parse_point(text: &str) -> Result<Vec3, String> {
@@ -86,7 +94,9 @@ fn parse_point(text: &str) -> Result<Vec3, String> {
         .collect::<Result<_, _>>()?;
     match parts.as_slice() {
         [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(Vec3::new(*x, *y, *z)),
-        _ => Err(format!("expected three finite numbers \"x,y,z\", found {text:?}")),
+        _ => Err(format!(
+            "expected three finite numbers \"x,y,z\", found {text:?}"
+        )),
     }
 }
 
@@ -96,7 +106,8 @@ fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
         let x = x.clamp(0.0, 1.0);
         x * x * (3.0 - 2.0 * x)
     };
-    let above = 0.02;
+    // Hover high enough to clear the default organ before it settles (its top starts 1.6 cm higher).
+    let above = 0.03;
     match motion {
         Motion::Press => {
             let depth = -0.006;
@@ -114,7 +125,11 @@ fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
         Motion::Stroke => {
             let depth = -0.003;
             let z = above + (depth - above) * smooth(t - 0.3);
-            let x = if t < 1.3 { 0.0 } else { 0.02 * (std::f64::consts::PI * (t - 1.3) / 2.0).sin() };
+            let x = if t < 1.3 {
+                0.0
+            } else {
+                0.02 * (std::f64::consts::PI * (t - 1.3) / 2.0).sin()
+            };
             let lift = smooth((t - 5.3) / 0.7);
             at + Vec3::new(x, 0.0, z + (above - z) * lift)
         }
@@ -122,14 +137,23 @@ fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
             let depth = -0.004;
             let phase = (t - 0.5).rem_euclid(1.0);
             let pressing = (0.5..4.5).contains(&t);
-            let dip = if pressing { (std::f64::consts::PI * phase).sin().powi(2) } else { 0.0 };
+            let dip = if pressing {
+                (std::f64::consts::PI * phase).sin().powi(2)
+            } else {
+                0.0
+            };
             at + Vec3::new(0.0, 0.0, above + (depth - above) * dip)
         }
         Motion::Random => {
             // A sum of slow sines with seeded phases: smooth, bounded, repeatable.
-            let phase = |k: u64| ((seed.wrapping_mul(6364136223846793005).wrapping_add(k * 1442695040888963407)) >> 11) as f64
-                / (1u64 << 53) as f64
-                * std::f64::consts::TAU;
+            let phase = |k: u64| {
+                ((seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(k * 1442695040888963407))
+                    >> 11) as f64
+                    / (1u64 << 53) as f64
+                    * std::f64::consts::TAU
+            };
             let wave = |k: u64, f: f64| (f * t + phase(k)).sin();
             let x = 0.01 * wave(1, 1.1) + 0.004 * wave(2, 2.3);
             let y = 0.01 * wave(3, 0.7) + 0.004 * wave(4, 1.9);
@@ -158,7 +182,10 @@ fn monotonic_ns() -> u64 {
 }
 
 fn libc_timespec() -> libc::timespec {
-    libc::timespec { tv_sec: 0, tv_nsec: 0 }
+    libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    }
 }
 
 /// What the device measured about the answers.
@@ -169,6 +196,8 @@ struct Tally {
     received: u64,
     max_force: f64,
     force: Vec3,
+    contacts: u32,
+    flags: u32,
 }
 
 impl Tally {
@@ -181,6 +210,8 @@ impl Tally {
     /// pose gives that pose's round-trip latency.
     fn take(&mut self, feedback: &ToolFeedbackV1, now: Instant) {
         self.received += 1;
+        self.contacts = feedback.contacts;
+        self.flags = feedback.flags;
         let f = Vec3::from(feedback.force);
         if f.iter().all(|x| x.is_finite()) {
             self.force = f;
@@ -189,7 +220,8 @@ impl Tally {
         if feedback.seq > self.answered_up_to {
             self.answered_up_to = feedback.seq;
             let slot = (feedback.seq as usize) & (self.sent_at.len() - 1);
-            self.latencies.push((now - self.sent_at[slot]).as_secs_f64() * 1e6);
+            self.latencies
+                .push((now - self.sent_at[slot]).as_secs_f64() * 1e6);
         }
     }
 }
@@ -203,8 +235,12 @@ fn main() -> Result<()> {
     let script: Option<Vec<Keyframe>> = match &args.script {
         None => None,
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-            Some(palpa::scene::parse_script(&text, &path.display().to_string())?)
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            Some(palpa::scene::parse_script(
+                &text,
+                &path.display().to_string(),
+            )?)
         }
     };
     let script_input = script.map(ToolInput::Script);
@@ -220,7 +256,8 @@ fn main() -> Result<()> {
 
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = stop.clone();
-    ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed)).context("signal handler")?;
+    ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
+        .context("signal handler")?;
 
     let node = create_node().map_err(|e| anyhow!("iceoryx2 node: {e}"))?;
     let publisher = pose_service(&node, &args.prefix, &args.tool)
@@ -234,6 +271,36 @@ fn main() -> Result<()> {
         .create()
         .map_err(|e| anyhow!("feedback subscriber: {e}"))?;
 
+    // Wait for the daemon: its feedback publisher answers with the last feedback (history 1) once
+    // both ends are connected. Then make sure our first pose reaches its subscriber.
+    let waiting = Instant::now();
+    loop {
+        if subscriber
+            .receive()
+            .map_err(|e| anyhow!("receive: {e}"))?
+            .is_some()
+        {
+            break;
+        }
+        if stop.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        if waiting.elapsed() > Duration::from_secs(30) {
+            bail!(
+                "no daemon answers on prefix {:?} (is `palpa serve --prefix {}` running?)",
+                args.prefix,
+                args.prefix
+            );
+        }
+        publisher
+            .update_connections()
+            .map_err(|e| anyhow!("connections: {e}"))?;
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    publisher
+        .update_connections()
+        .map_err(|e| anyhow!("connections: {e}"))?;
+
     let dt = 0.001;
     let ticks = (args.duration / dt).round() as u64;
     let (start_position, _) = target_at(0.0);
@@ -245,7 +312,14 @@ fn main() -> Result<()> {
         received: 0,
         max_force: 0.0,
         force: Vec3::zeros(),
+        contacts: 0,
+        flags: 0,
     };
+    let mut trace = Vec::with_capacity(if args.trace.is_some() {
+        ticks as usize
+    } else {
+        0
+    });
     let mut sent = 0u64;
     let started = Instant::now();
     let mut deadline = started;
@@ -283,8 +357,13 @@ fn main() -> Result<()> {
         if args.lockstep {
             // Wait for the answer to this pose (1 s at most: then it counts as lost).
             let give_up = Instant::now() + Duration::from_secs(1);
-            while tally.answered_up_to < seq && Instant::now() < give_up && !stop.load(Ordering::Relaxed) {
-                while let Some(sample) = subscriber.receive().map_err(|e| anyhow!("receive: {e}"))? {
+            while tally.answered_up_to < seq
+                && Instant::now() < give_up
+                && !stop.load(Ordering::Relaxed)
+            {
+                while let Some(sample) =
+                    subscriber.receive().map_err(|e| anyhow!("receive: {e}"))?
+                {
                     tally.take(sample.payload(), Instant::now());
                 }
                 if tally.answered_up_to < seq {
@@ -295,6 +374,9 @@ fn main() -> Result<()> {
             while let Some(sample) = subscriber.receive().map_err(|e| anyhow!("receive: {e}"))? {
                 tally.take(sample.payload(), Instant::now());
             }
+        }
+        if args.trace.is_some() {
+            trace.push((seq, t, position, tally.force, tally.contacts, tally.flags));
         }
     }
     // Collect the last answers.
@@ -330,8 +412,25 @@ fn main() -> Result<()> {
         "seconds": started.elapsed().as_secs_f64(),
     });
     println!("{summary}");
+    if let Some(path) = &args.trace {
+        use std::io::Write;
+        let mut out = std::io::BufWriter::new(
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create {}", path.display()))?,
+        );
+        writeln!(out, "seq,t,x,y,z,fx,fy,fz,contacts,flags")?;
+        for (seq, t, p, f, contacts, flags) in &trace {
+            writeln!(
+                out,
+                "{seq},{t},{},{},{},{},{},{},{contacts},{flags}",
+                p.x, p.y, p.z, f.x, f.y, f.z
+            )?;
+        }
+        out.flush()?;
+    }
     if let Some(path) = &args.report {
-        std::fs::write(path, format!("{summary:#}\n")).with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(path, format!("{summary:#}\n"))
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(())
 }

@@ -1,0 +1,406 @@
+//! The daemon between real processes over iceoryx2: `palpa serve` with `palpa-device`, a misbehaving
+//! bridge, a device killed and replaced, and a display that joins late. Every test uses its own
+//! service prefix; the tests run one at a time (the machine has two cores) and every child process is
+//! killed when its test ends, passing or not.
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::update_connections::UpdateConnections;
+use palpa::Vec3;
+use palpa::display::DisplayMesh;
+use palpa::ipc::payload::*;
+use palpa::ipc::services::*;
+use palpa::scene::default_scene;
+use palpa::tool::ToolPose;
+use palpa::world::World;
+
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
+/// Kills its process when dropped.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn prefix(test: &str) -> String {
+    format!("t{}_{test}", std::process::id())
+}
+
+fn temp(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("palpa-daemon-{}-{name}", std::process::id()))
+}
+
+fn serve(args: &[&str]) -> Guard {
+    Guard(
+        Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .arg("serve")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start palpa serve"),
+    )
+}
+
+fn device(args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_palpa-device"));
+    c.args(args).stdout(Stdio::null()).stderr(Stdio::inherit());
+    c
+}
+
+/// Sends SIGTERM and returns what the daemon printed; it must stop cleanly.
+fn stop(mut guard: Guard) -> String {
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe {
+        libc_kill(guard.0.id() as i32, 15);
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Some(status) = guard.0.try_wait().unwrap() {
+            assert!(status.success(), "palpa serve exited with {status}");
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "palpa serve did not stop on SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut out = String::new();
+    use std::io::Read;
+    guard
+        .0
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    out
+}
+
+unsafe extern "C" {
+    #[link_name = "kill"]
+    fn libc_kill(pid: i32, signal: i32) -> i32;
+}
+
+/// Polls `f` every 0.2 ms until it returns Some, for at most `seconds`.
+fn wait_for<T>(seconds: f64, mut f: impl FnMut() -> Option<T>) -> Option<T> {
+    let deadline = Instant::now() + Duration::from_secs_f64(seconds);
+    while Instant::now() < deadline {
+        if let Some(v) = f() {
+            return Some(v);
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    None
+}
+
+#[test]
+fn serve_and_device_press_for_3_s_in_lockstep() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("press");
+    let daemon = serve(&["--prefix", &p, "--lockstep"]);
+    let node = create_node().unwrap();
+    let stats = stats_service(&node, &p)
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let (report, trace) = (temp("press.json"), temp("press.csv"));
+    let status = device(&[
+        "--prefix",
+        &p,
+        "--lockstep",
+        "--duration",
+        "3",
+        "--motion",
+        "press",
+        "--report",
+    ])
+    .arg(&report)
+    .arg("--trace")
+    .arg(&trace)
+    .status()
+    .unwrap();
+    assert!(status.success());
+    let mut last_stats = None;
+    while let Some(s) = stats.receive().unwrap() {
+        last_stats = Some(*s.payload());
+    }
+    let out = stop(daemon);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(report["poses_sent"], 3000);
+    assert_eq!(report["lost"], 0, "{report}");
+    // Force rises while pressing and is zero once the probe is back up.
+    let rows: Vec<Vec<f64>> = std::fs::read_to_string(&trace)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let force_at = |t: f64| rows.iter().find(|r| r[1] >= t).map(|r| r[7]).unwrap();
+    assert!(force_at(1.6) > 0.1, "pressing: {}", force_at(1.6));
+    assert!(force_at(1.2) < force_at(1.6), "the force rises with depth");
+    assert!(
+        rows.iter()
+            .filter(|r| r[1] > 2.9)
+            .all(|r| r[5] == 0.0 && r[6] == 0.0 && r[7] == 0.0 && r[8] == 0.0)
+    );
+    // The daemon published its statistics and, in lockstep, missed no deadline.
+    let stats = last_stats.expect("the stats service publishes");
+    assert!(stats.tick >= 1000 && stats.window_ticks == 1000);
+    assert_eq!(stats.synchronicity_misses, 0);
+    assert_ne!(stats.active_systems & SYSTEM_TOOL_CONTACT, 0);
+    assert!(
+        out.contains("stopped after 3000 ticks: 0 synchronicity misses"),
+        "{out}"
+    );
+    std::fs::remove_file(temp("press.json")).ok();
+    std::fs::remove_file(temp("press.csv")).ok();
+}
+
+fn good_pose(seq: u64, z: f64) -> ToolPoseV1 {
+    ToolPoseV1 {
+        seq,
+        device_time_ns: seq * 1_000_000,
+        position: [0.0, 0.0, z],
+        orientation: [1.0, 0.0, 0.0, 0.0],
+        ..ToolPoseV1::default()
+    }
+}
+
+#[test]
+fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("bad");
+    let daemon = serve(&["--prefix", &p]);
+    let node = create_node().unwrap();
+    let poses = pose_service(&node, &p, "probe")
+        .unwrap()
+        .publisher_builder()
+        .create()
+        .unwrap();
+    let feedback = feedback_service(&node, &p, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let stats = stats_service(&node, &p)
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let mut newest = || {
+        let mut last = None;
+        while let Some(s) = feedback.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last
+    };
+    // Waits until the daemon has ticked past `tick` and returns that feedback.
+    let mut after = |tick: u64| {
+        wait_for(5.0, || newest().filter(|f| f.tick > tick + 2)).expect("the daemon ticks")
+    };
+    let mut tick = wait_for(5.0, || newest()).expect("the daemon is up").tick;
+    poses.send_copy(good_pose(1, 0.2)).unwrap();
+    let f = after(tick);
+    assert_eq!(f.seq, 1);
+    tick = f.tick;
+    let mut nan = good_pose(2, 0.2);
+    nan.position[0] = f64::NAN;
+    let jump = good_pose(3, 1.2);
+    let mut zero = good_pose(4, 0.2);
+    zero.orientation = [0.0; 4];
+    for bad in [nan, jump, zero] {
+        poses.send_copy(bad).unwrap();
+        let f = after(tick);
+        assert_eq!(f.seq, 1, "a rejected pose is not answered as used");
+        assert!(f.force.iter().all(|x| x.is_finite()));
+        tick = f.tick;
+    }
+    poses.send_copy(good_pose(5, 0.2005)).unwrap();
+    let f = after(tick);
+    assert_eq!(f.seq, 5, "the next good pose is used");
+    tick = f.tick;
+    poses.send_copy(good_pose(3, 0.2)).unwrap();
+    let f = after(tick);
+    assert_eq!(f.seq, 5, "a backwards sequence number is rejected");
+    tick = f.tick;
+    poses.send_copy(good_pose(6, 0.201)).unwrap();
+    assert_eq!(after(tick).seq, 6);
+    // Counted in the statistics (published every simulated second).
+    let counted = wait_for(3.0, || {
+        let mut last = None;
+        while let Some(s) = stats.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last.filter(|s| s.tick > tick)
+    })
+    .expect("stats after the bad poses");
+    assert_eq!(counted.rejected_inputs, 4);
+    let out = stop(daemon);
+    assert!(out.contains("4 rejected inputs"), "{out}");
+}
+
+#[test]
+fn a_killed_device_goes_stale_and_a_new_one_is_picked_up() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("kill");
+    let daemon = serve(&["--prefix", &p, "--stale-after-ms", "100"]);
+    let node = create_node().unwrap();
+    let feedback = feedback_service(&node, &p, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let mut newest = || {
+        let mut last = None;
+        while let Some(s) = feedback.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last
+    };
+    let first = Guard(
+        device(&["--prefix", &p, "--duration", "20", "--motion", "press"])
+            .spawn()
+            .unwrap(),
+    );
+    // Connected and pressing.
+    let pressing = wait_for(10.0, || {
+        newest().filter(|f| f.seq > 1200 && f.flags & FEEDBACK_STALE == 0 && f.contacts > 0)
+    });
+    assert!(pressing.is_some(), "the device connects and presses");
+    let mut first = first;
+    first.0.kill().unwrap(); // SIGKILL
+    first.0.wait().unwrap();
+    let killed_at = Instant::now();
+    let stale =
+        wait_for(2.0, || newest().filter(|f| f.flags & FEEDBACK_STALE != 0)).expect("marked stale");
+    assert!(killed_at.elapsed() < Duration::from_millis(1000));
+    assert_eq!(stale.force, [0.0; 3]);
+    assert_eq!(stale.torque, [0.0; 3]);
+    // The daemon keeps ticking.
+    let later =
+        wait_for(2.0, || newest().filter(|f| f.tick > stale.tick + 200)).expect("still ticking");
+    assert_ne!(later.flags & FEEDBACK_STALE, 0);
+    // A new device process is picked up (its sequence starts again from 1).
+    let second = device(&["--prefix", &p, "--duration", "1", "--motion", "press"])
+        .spawn()
+        .unwrap();
+    let second = Guard(second);
+    let picked = wait_for(5.0, || {
+        newest().filter(|f| f.flags & FEEDBACK_STALE == 0 && f.seq < 1000 && f.seq > 0)
+    });
+    assert!(picked.is_some(), "the new device is picked up");
+    drop(second);
+    let out = stop(daemon);
+    assert!(out.contains("disconnects"), "{out}");
+}
+
+#[test]
+fn a_display_joining_late_rebuilds_the_exact_mesh() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("display");
+    let daemon = serve(&["--prefix", &p, "--lockstep", "--keyframe-every", "1000"]);
+    let node = create_node().unwrap();
+    let poses = pose_service(&node, &p, "probe")
+        .unwrap()
+        .publisher_builder()
+        .create()
+        .unwrap();
+    let feedback = feedback_service(&node, &p, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let control = control_service(&node, &p)
+        .unwrap()
+        .client_builder()
+        .create()
+        .unwrap();
+    // The probe goes down into the organ and comes back: the mesh moves.
+    let pose_at = |k: u64| {
+        let t = k as f64 * 0.001;
+        let z = 0.12 - 0.06 * (t / 0.8).min(1.0) + 0.06 * ((t - 1.0) / 0.5).clamp(0.0, 1.0);
+        good_pose(k, z)
+    };
+    // Wait until the daemon is up (its initial feedback reaches us), then connect our poses.
+    wait_for(10.0, || {
+        poses.update_connections().unwrap();
+        feedback.receive().unwrap().map(|_| ())
+    })
+    .expect("the daemon is up");
+    poses.update_connections().unwrap();
+    let mut display = DisplayMesh::default();
+    let mut mesh = None;
+    let total = 1500u64;
+    for k in 1..=total {
+        poses.send_copy(pose_at(k)).unwrap();
+        wait_for(5.0, || {
+            let mut answered = false;
+            while let Some(s) = feedback.receive().unwrap() {
+                answered |= s.payload().seq == k;
+            }
+            answered.then_some(())
+        })
+        .expect("answered");
+        if k == 700 {
+            // The display joins now and asks for a keyframe.
+            let subscriber = mesh_service(&node, &p)
+                .unwrap()
+                .subscriber_builder()
+                .create()
+                .unwrap();
+            let pending = control
+                .send_copy(ControlRequestV1 {
+                    command: CONTROL_KEYFRAME,
+                    ..ControlRequestV1::default()
+                })
+                .unwrap();
+            mesh = Some((subscriber, pending));
+        }
+        if let Some((subscriber, _)) = &mesh {
+            while let Some(sample) = subscriber.receive().unwrap() {
+                // Deltas before the keyframe are refused; everything after applies.
+                let _ = display.apply(sample.user_header(), sample.payload());
+            }
+        }
+    }
+    let out = stop(daemon);
+    assert!(display.ready, "a keyframe arrived");
+    assert!(
+        display.tick > 700 && display.tick <= total,
+        "display at tick {}",
+        display.tick
+    );
+    // The same scene and the same poses, in this process: the display must hold its exact f32 bits.
+    let mut world = World::from_scene(&default_scene());
+    let probe = world.tools.iter().position(|t| t.name == "probe").unwrap();
+    for k in 1..=display.tick {
+        let pose = pose_at(k);
+        world.tools[probe].set_target(
+            ToolPose {
+                position_in_world: Vec3::from(pose.position),
+                ..ToolPose::default()
+            },
+            0.0,
+        );
+        world.step();
+    }
+    let exact = &world.bodies[0].surface.position_in_world;
+    assert_eq!(display.positions.len(), exact.len());
+    for (shown, x) in display.positions.iter().zip(exact) {
+        let bits = [x.x as f32, x.y as f32, x.z as f32].map(f32::to_bits);
+        assert_eq!(shown.map(f32::to_bits), bits);
+    }
+    assert_eq!(display.triangles, world.bodies[0].surface.triangles);
+    assert!(out.contains("stopped"), "{out}");
+}
