@@ -207,8 +207,7 @@ pub fn serve(
             break;
         }
         // Wait for this tick's turn.
-        let lateness_us;
-        if options.lockstep && !ipc_tools.is_empty() {
+        let lateness_us = if options.lockstep && !ipc_tools.is_empty() {
             let mut polls = 0u32;
             'wait: loop {
                 if stop.load(Ordering::Relaxed) {
@@ -233,7 +232,7 @@ pub fn serve(
             if stop.load(Ordering::Relaxed) {
                 break;
             }
-            lateness_us = 0.0;
+            0.0
         } else {
             let now = Instant::now();
             if deadline > now + spin {
