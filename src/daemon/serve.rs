@@ -241,11 +241,11 @@ pub fn serve(
             while Instant::now() < deadline {
                 std::hint::spin_loop();
             }
-            lateness_us = Instant::now()
+            Instant::now()
                 .saturating_duration_since(deadline)
                 .as_secs_f64()
-                * 1e6;
-        }
+                * 1e6
+        };
         let started = Instant::now();
 
         // Control.
