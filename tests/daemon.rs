@@ -198,7 +198,7 @@ fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
         .subscriber_builder()
         .create()
         .unwrap();
-    let mut newest = || {
+    let newest = || {
         let mut last = None;
         while let Some(s) = feedback.receive().unwrap() {
             last = Some(*s.payload());
@@ -206,10 +206,10 @@ fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
         last
     };
     // Waits until the daemon has ticked past `tick` and returns that feedback.
-    let mut after = |tick: u64| {
+    let after = |tick: u64| {
         wait_for(5.0, || newest().filter(|f| f.tick > tick + 2)).expect("the daemon ticks")
     };
-    let mut tick = wait_for(5.0, || newest()).expect("the daemon is up").tick;
+    let mut tick = wait_for(5.0, newest).expect("the daemon is up").tick;
     poses.send_copy(good_pose(1, 0.2)).unwrap();
     let f = after(tick);
     assert_eq!(f.seq, 1);
@@ -261,7 +261,7 @@ fn a_killed_device_goes_stale_and_a_new_one_is_picked_up() {
         .subscriber_builder()
         .create()
         .unwrap();
-    let mut newest = || {
+    let newest = || {
         let mut last = None;
         while let Some(s) = feedback.receive().unwrap() {
             last = Some(*s.payload());
