@@ -16,6 +16,7 @@
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
 //! - [`trace`]: the CSV trace of a run.
 //! - [`daemon`]: input hygiene and loop statistics of the 1 kHz daemon.
+//! - [`device`]: the simulated haptic device (model and loop).
 //! - [`display`]: mesh keyframes and deltas for renderers, and the client that rebuilds them.
 //! - [`ipc`]: the shared-memory payloads (`proto/palpa_ipc.h`) and, with the `ipc` feature, services.
 //!
@@ -37,6 +38,7 @@ pub mod body;
 pub mod collision;
 pub mod contact;
 pub mod daemon;
+pub mod device;
 pub mod display;
 pub mod dynamics;
 pub mod ipc;

@@ -52,6 +52,13 @@ enum Command {
     /// Run the 1 kHz simulation daemon: tool poses in, feedback and mesh deltas out, over iceoryx2.
     #[cfg(feature = "ipc")]
     Serve(ServeArgs),
+    /// Start the daemon and a simulated device together (two processes) and palpate the default organ.
+    #[cfg(feature = "ipc")]
+    Demo {
+        /// Seconds of palpation.
+        #[arg(long, default_value_t = 6.0)]
+        duration: f64,
+    },
 }
 
 /// Options of `palpa serve`.
@@ -105,6 +112,8 @@ fn main() -> Result<()> {
         Command::Check { scene } => check(scene.as_deref()),
         #[cfg(feature = "ipc")]
         Command::Serve(args) => serve(args),
+        #[cfg(feature = "ipc")]
+        Command::Demo { duration } => demo(duration),
     }
 }
 
@@ -285,6 +294,95 @@ fn serve(args: ServeArgs) -> Result<()> {
         summary.disconnects,
         summary.compute_max_us
     );
+    Ok(())
+}
+
+#[cfg(feature = "ipc")]
+fn demo(duration: f64) -> Result<()> {
+    use palpa::device::model::PRESETS;
+    use palpa::device::run::{DeviceOptions, HandPath, Motion, run_device};
+    use palpa::ipc::services::{create_node, stats_service};
+    use std::io::{IsTerminal, Write};
+    use std::process::{Command as Process, Stdio};
+    use std::sync::Arc;
+    use std::sync::atomic::AtomicBool;
+
+    if !(duration.is_finite() && duration > 0.0) {
+        bail!("--duration must be > 0");
+    }
+    let prefix = format!("palpa_demo_{}", std::process::id());
+    let exe = std::env::current_exe().context("cannot find the palpa executable")?;
+    println!(
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix}`) and a simulated Geomagic Touch"
+    );
+    let daemon = Process::new(&exe)
+        .args(["serve", "--prefix", &prefix])
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("cannot start palpa serve")?;
+    let node = create_node().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let stats = stats_service(&node, &prefix)
+        .and_then(|f| Ok(f.subscriber_builder().create()?))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let options = DeviceOptions {
+        prefix: prefix.clone(),
+        tool: "probe".into(),
+        spec: PRESETS[0],
+        path: HandPath::BuiltIn {
+            motion: Motion::Palpate,
+            at: palpa::Vec3::new(0.0, 0.0, 0.0645),
+            seed: 1,
+        },
+        duration,
+        lockstep: false,
+        keep_trace: false,
+    };
+    let terminal = std::io::stdout().is_terminal();
+    let mut misses = 0u64;
+    let result = run_device(&options, Arc::new(AtomicBool::new(false)), |status| {
+        while let Ok(Some(sample)) = stats.receive() {
+            misses = sample.payload().synchronicity_misses;
+        }
+        let line = format!(
+            "t {:4.1} s | force {:6.3} N | contacts {:2} | round trip p99 {:7.1} µs | synchronicity misses {}",
+            status.t,
+            status.force.norm(),
+            status.contacts,
+            status.latency_p99_us,
+            misses
+        );
+        if terminal {
+            print!("\r{line}");
+            let _ = std::io::stdout().flush();
+        } else {
+            println!("{line}");
+        }
+    });
+    if terminal {
+        println!();
+    }
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc::kill(daemon.id() as i32, libc::SIGTERM);
+    }
+    let output = daemon
+        .wait_with_output()
+        .context("waiting for the daemon")?;
+    let report = result.map_err(|e| anyhow::anyhow!("device: {e}"))?;
+    println!(
+        "palpa demo: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N",
+        report.poses_sent,
+        report.latencies_us.len(),
+        report.lost(),
+        report.latency_percentile(0.5),
+        report.latency_percentile(0.99),
+        report.latency_percentile(0.999),
+        report.max_force
+    );
+    let daemon_out = String::from_utf8_lossy(&output.stdout);
+    if let Some(last) = daemon_out.lines().last() {
+        println!("{last}");
+    }
     Ok(())
 }
 

@@ -4,7 +4,7 @@
 //! position is read through encoders of finite resolution. So forces change the motion as they would
 //! for a person holding a real device.
 
-use palpa::Vec3;
+use crate::Vec3;
 
 /// The mechanical figures of a device.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,0 +1,411 @@
+//! The simulated device's loop over iceoryx2 (used by `palpa-device` and `palpa demo`): publish the
+//! handle's pose every millisecond on `<prefix>/tool/<tool>/pose`, render the force received on
+//! `<prefix>/tool/<tool>/feedback`, and time every round trip.
+//!
+//! Real-time mode sends on its own 1 ms clock; lockstep mode sends the next pose only when the
+//! previous one was answered (1 s at most, then it counts as lost).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::update_connections::UpdateConnections;
+
+use super::model::{Device, DeviceSpec, Hand};
+use crate::Vec3;
+use crate::ipc::payload::{ToolFeedbackV1, ToolPoseV1};
+use crate::ipc::services::{IpcError, create_node, feedback_service, pose_service};
+use crate::tool::{Keyframe, ToolInput};
+
+/// A built-in motion of the hand.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// Down 6 mm into the surface, hold, and up.
+    Press,
+    /// Down 3 mm and back and forth 2 cm along x, then up.
+    Stroke,
+    /// Four presses of 4 mm, one a second.
+    Palpate,
+    /// A smooth random walk over and into the surface (seeded).
+    Random,
+}
+
+/// Where the hand goes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HandPath {
+    /// A built-in motion around a surface point.
+    BuiltIn {
+        /// The motion.
+        motion: Motion,
+        /// The surface point (m, world).
+        at: Vec3,
+        /// Seed of the random motion.
+        seed: u64,
+    },
+    /// Waypoints as in a scene tool script.
+    Script(Vec<Keyframe>),
+}
+
+/// How the device runs.
+#[derive(Clone, Debug)]
+pub struct DeviceOptions {
+    /// Service prefix.
+    pub prefix: String,
+    /// Tool name.
+    pub tool: String,
+    /// The device model.
+    pub spec: DeviceSpec,
+    /// The hand's path.
+    pub path: HandPath,
+    /// Seconds to run.
+    pub duration: f64,
+    /// Wait for each answer before the next pose.
+    pub lockstep: bool,
+    /// Keep one row per pose for a trace.
+    pub keep_trace: bool,
+}
+
+/// One row of the device trace.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceRow {
+    /// Sequence number of the pose.
+    pub seq: u64,
+    /// Device time (s).
+    pub t: f64,
+    /// Measured handle position (m).
+    pub position: Vec3,
+    /// Last force received (N).
+    pub force: Vec3,
+    /// Its contact count.
+    pub contacts: u32,
+    /// Its flags.
+    pub flags: u32,
+}
+
+/// What the device measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DeviceReport {
+    /// Poses published.
+    pub poses_sent: u64,
+    /// Feedback samples received.
+    pub feedback_received: u64,
+    /// Round-trip latencies of the answered poses (µs), sorted.
+    pub latencies_us: Vec<f64>,
+    /// Largest force received (N).
+    pub max_force: f64,
+    /// Wall time (s).
+    pub seconds: f64,
+    /// One row per pose, when asked.
+    pub trace: Vec<TraceRow>,
+}
+
+impl DeviceReport {
+    /// Poses never answered.
+    pub fn lost(&self) -> u64 {
+        self.poses_sent - self.latencies_us.len() as u64
+    }
+
+    /// Latency percentile (µs) of the answered poses, `q` in [0, 1].
+    pub fn latency_percentile(&self, q: f64) -> f64 {
+        percentile(&self.latencies_us, q)
+    }
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let rank = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
+
+/// A live view of the device, handed to the status callback about once a second.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DeviceStatus {
+    /// Device time (s).
+    pub t: f64,
+    /// Last force received (N).
+    pub force: Vec3,
+    /// Its contact count.
+    pub contacts: u32,
+    /// 99th percentile round-trip latency over the last second (µs).
+    pub latency_p99_us: f64,
+}
+
+/// The hand's intended position at time `t` for a built-in motion around the surface point `at`.
+pub fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
+    let smooth = |x: f64| {
+        let x = x.clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    };
+    // Hover high enough to clear the default organ before it settles (its top starts 1.6 cm higher).
+    let above = 0.03;
+    match motion {
+        Motion::Press => {
+            let depth = -0.006;
+            let z = if t < 0.5 {
+                above
+            } else if t < 1.5 {
+                above + (depth - above) * smooth(t - 0.5)
+            } else if t < 2.0 {
+                depth
+            } else {
+                depth + (above - depth) * smooth((t - 2.0) / 0.8)
+            };
+            at + Vec3::new(0.0, 0.0, z)
+        }
+        Motion::Stroke => {
+            let depth = -0.003;
+            let z = above + (depth - above) * smooth(t - 0.3);
+            let x = if t < 1.3 {
+                0.0
+            } else {
+                0.02 * (std::f64::consts::PI * (t - 1.3) / 2.0).sin()
+            };
+            let lift = smooth((t - 5.3) / 0.7);
+            at + Vec3::new(x, 0.0, z + (above - z) * lift)
+        }
+        Motion::Palpate => {
+            let depth = -0.004;
+            let phase = (t - 0.5).rem_euclid(1.0);
+            let pressing = (0.5..4.5).contains(&t);
+            let dip = if pressing {
+                (std::f64::consts::PI * phase).sin().powi(2)
+            } else {
+                0.0
+            };
+            at + Vec3::new(0.0, 0.0, above + (depth - above) * dip)
+        }
+        Motion::Random => {
+            // A sum of slow sines with seeded phases: smooth, bounded, repeatable.
+            let phase = |k: u64| {
+                let mixed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(k.wrapping_mul(1442695040888963407));
+                (mixed >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU
+            };
+            let wave = |k: u64, f: f64| (f * t + phase(k)).sin();
+            let x = 0.01 * wave(1, 1.1) + 0.004 * wave(2, 2.3);
+            let y = 0.01 * wave(3, 0.7) + 0.004 * wave(4, 1.9);
+            let z = 0.5 * (above - 0.004) + 0.5 * (above + 0.004) * wave(5, 1.3);
+            at + Vec3::new(x, y, z)
+        }
+    }
+}
+
+fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the valid timespec we pass.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// What the device measured about the answers.
+struct Tally {
+    sent_at: Vec<Instant>,
+    latencies: Vec<f64>,
+    window: Vec<f64>,
+    answered_up_to: u64,
+    received: u64,
+    max_force: f64,
+    force: Vec3,
+    contacts: u32,
+    flags: u32,
+}
+
+impl Tally {
+    fn mark_sent(&mut self, seq: u64) {
+        let slot = (seq as usize) & (self.sent_at.len() - 1);
+        self.sent_at[slot] = Instant::now();
+    }
+
+    /// A feedback sample arrived at `now`: its force is rendered from now on; the first answer to a
+    /// pose gives that pose's round-trip latency.
+    fn take(&mut self, feedback: &ToolFeedbackV1, now: Instant) {
+        self.received += 1;
+        self.contacts = feedback.contacts;
+        self.flags = feedback.flags;
+        let f = Vec3::from(feedback.force);
+        if f.iter().all(|x| x.is_finite()) {
+            self.force = f;
+            self.max_force = self.max_force.max(f.norm());
+        }
+        if feedback.seq > self.answered_up_to {
+            self.answered_up_to = feedback.seq;
+            let slot = (feedback.seq as usize) & (self.sent_at.len() - 1);
+            let latency = (now - self.sent_at[slot]).as_secs_f64() * 1e6;
+            self.latencies.push(latency);
+            self.window.push(latency);
+        }
+    }
+}
+
+/// Runs the device until the duration is over or `stop` is set; `status` is called about once a
+/// second of device time.
+pub fn run_device(
+    options: &DeviceOptions,
+    stop: Arc<AtomicBool>,
+    mut status: impl FnMut(&DeviceStatus),
+) -> Result<DeviceReport, IpcError> {
+    let script = match &options.path {
+        HandPath::Script(keys) => Some(ToolInput::Script(keys.clone())),
+        HandPath::BuiltIn { .. } => None,
+    };
+    let target_at = |t: f64| -> (Vec3, f64) {
+        match (&options.path, &script) {
+            (_, Some(input)) => {
+                let (pose, jaw) = input.sample(t).unwrap_or_default();
+                (pose.position_in_world, jaw)
+            }
+            (HandPath::BuiltIn { motion, at, seed }, None) => {
+                (built_in_target(*motion, at, t, *seed), 0.0)
+            }
+            (HandPath::Script(_), None) => unreachable!("a script path always has its input"),
+        }
+    };
+
+    let node = create_node()?;
+    let publisher = pose_service(&node, &options.prefix, &options.tool)?
+        .publisher_builder()
+        .create()?;
+    let subscriber = feedback_service(&node, &options.prefix, &options.tool)?
+        .subscriber_builder()
+        .create()?;
+
+    // Wait for the daemon: its feedback publisher hands us the last feedback (history 1) once both
+    // ends are connected. Then make sure our first pose reaches its subscriber.
+    let waiting = Instant::now();
+    loop {
+        if subscriber.receive()?.is_some() {
+            break;
+        }
+        if stop.load(Ordering::Relaxed) {
+            return Ok(DeviceReport::default());
+        }
+        if waiting.elapsed() > Duration::from_secs(30) {
+            return Err(format!(
+                "no daemon answers on prefix {:?} (is `palpa serve --prefix {}` running?)",
+                options.prefix, options.prefix
+            )
+            .into());
+        }
+        publisher.update_connections()?;
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    publisher.update_connections()?;
+
+    let dt = 0.001;
+    let ticks = (options.duration / dt).round() as u64;
+    let (start_position, _) = target_at(0.0);
+    let mut handle = Device::new(options.spec, Hand::default(), start_position);
+    let mut tally = Tally {
+        sent_at: vec![Instant::now(); 1 << 14],
+        latencies: Vec::with_capacity(ticks as usize),
+        window: Vec::with_capacity(2000),
+        answered_up_to: 0,
+        received: 0,
+        max_force: 0.0,
+        force: Vec3::zeros(),
+        contacts: 0,
+        flags: 0,
+    };
+    let mut trace = Vec::with_capacity(if options.keep_trace {
+        ticks as usize
+    } else {
+        0
+    });
+    let mut sent = 0u64;
+    let started = Instant::now();
+    let mut deadline = started;
+
+    for tick in 1..=ticks {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let t = tick as f64 * dt;
+        let (target, jaw) = target_at(t);
+        let (previous, _) = target_at(t - dt);
+        handle.step(&target, &((target - previous) / dt), &tally.force, dt);
+        let position = handle.measured_position();
+        if !options.lockstep {
+            deadline += Duration::from_millis(1);
+            let now = Instant::now();
+            if deadline > now {
+                std::thread::sleep(deadline - now);
+            }
+        }
+        let seq = tick;
+        tally.mark_sent(seq);
+        publisher.send_copy(ToolPoseV1 {
+            seq,
+            device_time_ns: monotonic_ns(),
+            position: position.into(),
+            orientation: [1.0, 0.0, 0.0, 0.0],
+            jaw,
+            buttons: 0,
+            reserved: 0,
+        })?;
+        sent += 1;
+        if options.lockstep {
+            let give_up = Instant::now() + Duration::from_secs(1);
+            while tally.answered_up_to < seq
+                && Instant::now() < give_up
+                && !stop.load(Ordering::Relaxed)
+            {
+                while let Some(sample) = subscriber.receive()? {
+                    tally.take(sample.payload(), Instant::now());
+                }
+                if tally.answered_up_to < seq {
+                    std::thread::sleep(Duration::from_micros(10));
+                }
+            }
+        } else {
+            while let Some(sample) = subscriber.receive()? {
+                tally.take(sample.payload(), Instant::now());
+            }
+        }
+        if options.keep_trace {
+            trace.push(TraceRow {
+                seq,
+                t,
+                position,
+                force: tally.force,
+                contacts: tally.contacts,
+                flags: tally.flags,
+            });
+        }
+        if tick % 1000 == 0 {
+            tally.window.sort_by(f64::total_cmp);
+            status(&DeviceStatus {
+                t,
+                force: tally.force,
+                contacts: tally.contacts,
+                latency_p99_us: percentile(&tally.window, 0.99),
+            });
+            tally.window.clear();
+        }
+    }
+    // Collect the last answers.
+    let settle = Instant::now() + Duration::from_millis(50);
+    while Instant::now() < settle {
+        while let Some(sample) = subscriber.receive()? {
+            tally.take(sample.payload(), Instant::now());
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mut latencies = tally.latencies;
+    latencies.sort_by(f64::total_cmp);
+    Ok(DeviceReport {
+        poses_sent: sent,
+        feedback_received: tally.received,
+        latencies_us: latencies,
+        max_force: tally.max_force,
+        seconds: started.elapsed().as_secs_f64(),
+        trace,
+    })
+}
