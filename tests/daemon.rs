@@ -404,3 +404,17 @@ fn a_display_joining_late_rebuilds_the_exact_mesh() {
     assert_eq!(display.triangles, world.bodies[0].surface.triangles);
     assert!(out.contains("stopped"), "{out}");
 }
+
+#[test]
+fn demo_runs_daemon_and_device_together() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(["demo", "--duration", "1.5"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("1500 poses sent"), "{text}");
+    assert!(text.contains("round trip median"), "{text}");
+    assert!(text.contains("palpa serve: stopped after"), "{text}");
+}
