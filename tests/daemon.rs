@@ -418,3 +418,56 @@ fn demo_runs_daemon_and_device_together() {
     assert!(text.contains("round trip median"), "{text}");
     assert!(text.contains("palpa serve: stopped after"), "{text}");
 }
+
+#[test]
+fn control_pauses_resumes_and_resets() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("control");
+    let daemon = serve(&["--prefix", &p]);
+    let node = create_node().unwrap();
+    let control = control_service(&node, &p)
+        .unwrap()
+        .client_builder()
+        .create()
+        .unwrap();
+    let stats = stats_service(&node, &p)
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let mut ask = |command: u32| -> ControlResponseV1 {
+        let pending = wait_for(10.0, || {
+            let pending = control
+                .send_copy(ControlRequestV1 {
+                    command,
+                    ..ControlRequestV1::default()
+                })
+                .unwrap();
+            // A request sent before the daemon's server exists is lost: ask again.
+            (pending.number_of_server_connections() > 0).then_some(pending)
+        })
+        .expect("the daemon's control server");
+        wait_for(5.0, || pending.receive().unwrap().map(|r| *r.payload())).expect("a response")
+    };
+    let newest_stats = || {
+        let mut last = None;
+        while let Some(s) = stats.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last
+    };
+    let unknown = ask(99);
+    assert_eq!(unknown.status, -1);
+    let paused = ask(CONTROL_PAUSE);
+    assert_eq!((paused.command, paused.status), (CONTROL_PAUSE, 0));
+    let stats_paused =
+        wait_for(3.0, || newest_stats().filter(|s| s.paused == 1)).expect("paused in stats");
+    let resumed = ask(CONTROL_RESUME);
+    assert_eq!(resumed.status, 0);
+    assert!(resumed.tick >= paused.tick);
+    let reset = ask(CONTROL_RESET);
+    assert_eq!(reset.status, 0);
+    assert!(reset.tick < 5, "reset goes back to tick 0: {}", reset.tick);
+    assert_eq!(stats_paused.paused, 1);
+    stop(daemon);
+}

@@ -70,6 +70,8 @@ pub struct ServeSummary {
     pub disconnects: u64,
     /// Largest tick compute time (µs).
     pub compute_max_us: f64,
+    /// Mean tick compute time (µs): the daemon's share of a round trip, pose read to feedback sent.
+    pub compute_mean_us: f64,
 }
 
 /// Applies the real-time requests one by one; returns a warning for each that was not granted.
@@ -367,6 +369,7 @@ pub fn serve(
         let compute_us = started.elapsed().as_secs_f64() * 1e6;
         stats.record(compute_us, lateness_us, period_us);
         summary.compute_max_us = summary.compute_max_us.max(compute_us);
+        summary.compute_mean_us += compute_us;
         if stats.window_ticks() >= 1000 {
             stats.close_window(&mut stats_out);
             stats_out.tick = world.tick;
@@ -389,6 +392,7 @@ pub fn serve(
             deadline = now + period;
         }
     }
+    summary.compute_mean_us /= summary.ticks.max(1) as f64;
     summary.synchronicity_misses = stats.synchronicity_misses;
     summary.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
     summary.disconnects = inputs.iter().map(|i| i.disconnects).sum();
