@@ -435,7 +435,7 @@ fn control_pauses_resumes_and_resets() {
         .subscriber_builder()
         .create()
         .unwrap();
-    let mut ask = |command: u32| -> ControlResponseV1 {
+    let ask = |command: u32| -> ControlResponseV1 {
         let pending = wait_for(10.0, || {
             let pending = control
                 .send_copy(ControlRequestV1 {
