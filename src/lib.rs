@@ -42,6 +42,8 @@ pub mod device;
 pub mod display;
 pub mod dynamics;
 pub mod ipc;
+#[cfg(feature = "record")]
+pub mod record;
 pub mod scene;
 pub mod tool;
 pub mod trace;

@@ -15,9 +15,10 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::update_connections::UpdateConnections;
 
+use crate::daemon::feedback_payload;
 use crate::daemon::input::{InputLimits, ToolInputState};
 use crate::daemon::stats::LoopStats;
-use crate::display::{MeshEncoder, max_message_bytes};
+use crate::display::MeshSchedule;
 use crate::ipc::payload::*;
 use crate::ipc::services::*;
 use crate::scene::Scene;
@@ -125,15 +126,6 @@ fn active_system_bits(world: &World) -> u32 {
     bits
 }
 
-fn new_encoders(world: &World) -> Vec<MeshEncoder> {
-    world
-        .bodies
-        .iter()
-        .enumerate()
-        .map(|(i, b)| MeshEncoder::new(i as u32, b.node_count()))
-        .collect()
-}
-
 /// Runs the daemon on the calling thread until `stop` is set or the duration is reached.
 pub fn serve(
     scene: &Scene,
@@ -173,26 +165,14 @@ pub fn serve(
     let stats_publisher = stats_service(&node, &options.prefix)?
         .publisher_builder()
         .create()?;
-    let mesh_bytes = world
-        .bodies
-        .iter()
-        .map(|b| max_message_bytes(b.node_count(), b.surface.triangles.len()))
-        .max()
-        .unwrap_or(0)
-        .max(1);
+    let mut meshes = MeshSchedule::new(&world, options.display_rate_hz, options.keyframe_every_s);
     let mesh_publisher = mesh_service(&node, &options.prefix)?
         .publisher_builder()
-        .initial_max_slice_len(mesh_bytes)
+        .initial_max_slice_len(meshes.max_message_bytes())
         .create()?;
     let control_server = control_service(&node, &options.prefix)?
         .server_builder()
         .create()?;
-
-    let mut encoders = new_encoders(&world);
-    let mut mesh_scratch = vec![0u8; mesh_bytes];
-    let display_every = ((1.0 / (options.display_rate_hz.max(1e-3) * dt)).round() as u64).max(1);
-    let keyframe_every = ((options.keyframe_every_s / dt).round() as u64).max(1);
-    let mut keyframe_requested = true;
 
     let max_ticks = options.duration.map(|d| (d / dt).round() as u64);
     let period = Duration::from_secs_f64(dt);
@@ -256,11 +236,10 @@ pub fn serve(
             let status = match command {
                 CONTROL_RESET => {
                     world = World::from_scene(scene);
-                    encoders = new_encoders(&world);
+                    meshes.reset(&world);
                     for input in &mut inputs {
                         *input = ToolInputState::default();
                     }
-                    keyframe_requested = true;
                     0
                 }
                 CONTROL_PAUSE => {
@@ -272,7 +251,7 @@ pub fn serve(
                     0
                 }
                 CONTROL_KEYFRAME => {
-                    keyframe_requested = true;
+                    meshes.request_keyframe();
                     0
                 }
                 _ => -1,
@@ -309,61 +288,23 @@ pub fn serve(
 
         // Feedback.
         for (k, &tool_index) in ipc_tools.iter().enumerate() {
-            let feedback = &world.tools[tool_index].feedback;
-            let connected = inputs[k].connected;
-            let mut flags = 0;
-            if !connected {
-                flags |= FEEDBACK_STALE;
-            }
-            if feedback.clamped {
-                flags |= FEEDBACK_CLAMPED;
-            }
-            if inputs[k].rejected_this_tick {
-                flags |= FEEDBACK_REJECTED;
-            }
-            let (force, torque) = if connected {
-                (feedback.force_in_world, feedback.torque_in_world)
-            } else {
-                (crate::Vec3::zeros(), crate::Vec3::zeros())
-            };
-            let finite = force.iter().chain(torque.iter()).all(|x| x.is_finite());
-            feedback_publishers[k].send_copy(ToolFeedbackV1 {
-                seq: echo[k].0,
-                device_time_ns: echo[k].1,
-                tick: world.tick,
-                force: if finite { force.into() } else { [0.0; 3] },
-                torque: if finite { torque.into() } else { [0.0; 3] },
-                contacts: feedback.contacts,
-                flags: if finite {
-                    flags
-                } else {
-                    flags | FEEDBACK_DIVERGED
-                },
-            })?;
+            let payload = feedback_payload(
+                &world.tools[tool_index],
+                world.tick,
+                inputs[k].connected,
+                inputs[k].rejected_this_tick,
+                echo[k],
+            );
+            feedback_publishers[k].send_copy(payload)?;
         }
 
         // Display.
-        if world.tick % display_every == 0 || keyframe_requested {
-            let keyframe = keyframe_requested || world.tick % keyframe_every == 0;
-            for (encoder, body) in encoders.iter_mut().zip(&world.bodies) {
-                let s = &body.surface;
-                let header = if keyframe {
-                    encoder.keyframe(
-                        world.tick,
-                        &s.position_in_world,
-                        &s.triangles,
-                        &mut mesh_scratch,
-                    )
-                } else {
-                    encoder.delta(world.tick, &s.position_in_world, &mut mesh_scratch)
-                };
-                let length = header.payload_bytes as usize;
-                let mut sample = mesh_publisher.loan_slice_uninit(length)?;
-                *sample.user_header_mut() = header;
-                sample.write_from_slice(&mesh_scratch[..length]).send()?;
-            }
-            keyframe_requested = false;
-        }
+        meshes.produce(&world, |header, bytes| -> Result<(), IpcError> {
+            let mut sample = mesh_publisher.loan_slice_uninit(bytes.len())?;
+            *sample.user_header_mut() = *header;
+            sample.write_from_slice(bytes).send()?;
+            Ok(())
+        })?;
 
         // Statistics.
         let compute_us = started.elapsed().as_secs_f64() * 1e6;

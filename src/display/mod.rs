@@ -291,3 +291,84 @@ mod tests {
         assert!(!display.ready);
     }
 }
+
+/// When mesh messages are due and what they hold: one message per body every `display_every` ticks,
+/// a keyframe at start, every `keyframe_every` ticks and on request, deltas otherwise. Shared by the
+/// daemon, headless recording and replay, so all three produce the same messages at the same ticks.
+#[derive(Clone, Debug)]
+pub struct MeshSchedule {
+    display_every: u64,
+    keyframe_every: u64,
+    encoders: Vec<MeshEncoder>,
+    scratch: Vec<u8>,
+    keyframe_requested: bool,
+}
+
+impl MeshSchedule {
+    /// A schedule for `world` at `display_rate_hz`, with keyframes every `keyframe_every_s` seconds.
+    pub fn new(world: &crate::world::World, display_rate_hz: f64, keyframe_every_s: f64) -> Self {
+        let dt = world.params.dt;
+        let bytes = world
+            .bodies
+            .iter()
+            .map(|b| max_message_bytes(b.node_count(), b.surface.triangles.len()))
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        Self {
+            display_every: ((1.0 / (display_rate_hz.max(1e-3) * dt)).round() as u64).max(1),
+            keyframe_every: ((keyframe_every_s / dt).round() as u64).max(1),
+            encoders: world
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(i, b)| MeshEncoder::new(i as u32, b.node_count()))
+                .collect(),
+            scratch: vec![0; bytes],
+            keyframe_requested: true,
+        }
+    }
+
+    /// Largest message in bytes.
+    pub fn max_message_bytes(&self) -> usize {
+        self.scratch.len()
+    }
+
+    /// Asks for a keyframe at the next opportunity.
+    pub fn request_keyframe(&mut self) {
+        self.keyframe_requested = true;
+    }
+
+    /// Starts again (after a world reset): new encoders, a keyframe next.
+    pub fn reset(&mut self, world: &crate::world::World) {
+        for (e, b) in self.encoders.iter_mut().zip(&world.bodies) {
+            *e = MeshEncoder::new(e.body, b.node_count());
+        }
+        self.keyframe_requested = true;
+    }
+
+    /// If messages are due at the world's current tick, encodes one per body and hands each to
+    /// `emit`. Allocates nothing.
+    pub fn produce<E>(
+        &mut self,
+        world: &crate::world::World,
+        mut emit: impl FnMut(&MeshHeaderV1, &[u8]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let tick = world.tick;
+        if tick % self.display_every != 0 && !self.keyframe_requested {
+            return Ok(());
+        }
+        let keyframe = self.keyframe_requested || tick % self.keyframe_every == 0;
+        for (encoder, body) in self.encoders.iter_mut().zip(&world.bodies) {
+            let s = &body.surface;
+            let header = if keyframe {
+                encoder.keyframe(tick, &s.position_in_world, &s.triangles, &mut self.scratch)
+            } else {
+                encoder.delta(tick, &s.position_in_world, &mut self.scratch)
+            };
+            emit(&header, &self.scratch[..header.payload_bytes as usize])?;
+        }
+        self.keyframe_requested = false;
+        Ok(())
+    }
+}

@@ -89,8 +89,9 @@ pub struct Scene {
     pub obstacles: Vec<Obstacle>,
     /// Tools, in file order.
     pub tools: Vec<ToolSpec>,
-    /// Files the scene loaded (meshes), in load order.
-    pub assets: Vec<PathBuf>,
+    /// Files the scene loaded (meshes), in load order: the path as written in the scene (relative to
+    /// the scene file) and where it was found.
+    pub asset_names: Vec<(String, PathBuf)>,
 }
 
 /// A scene that cannot be loaded.
@@ -215,7 +216,7 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
         bodies,
         obstacles,
         tools,
-        assets,
+        asset_names: assets,
     })
 }
 
@@ -476,7 +477,7 @@ impl Ctx<'_> {
         index: usize,
         world: &WorldParams,
         dir: &Path,
-        assets: &mut Vec<PathBuf>,
+        assets: &mut Vec<(String, PathBuf)>,
     ) -> Result<BodySpec, SceneError> {
         let b = body.get_ref();
         let name = b
@@ -562,7 +563,7 @@ impl Ctx<'_> {
         &self,
         section: &Spanned<MeshSection>,
         dir: &Path,
-        assets: &mut Vec<PathBuf>,
+        assets: &mut Vec<(String, PathBuf)>,
     ) -> Result<(SurfaceMesh, String), SceneError> {
         let m = section.get_ref();
         let given = [
@@ -655,7 +656,7 @@ impl Ctx<'_> {
             let path = dir.join(obj.get_ref());
             let mesh =
                 mesh::load_obj(&path).map_err(|e| self.error(obj.span(), format!("mesh: {e}")))?;
-            assets.push(path);
+            assets.push((obj.get_ref().clone(), path));
             (mesh, format!("obj {}", obj.get_ref()))
         };
         mesh.scale(scale);

@@ -1,0 +1,603 @@
+//! The recorder: a thread of its own writes one MCAP file per session, fed by the tick through bounded
+//! lock-free queues. The tick never waits: it pushes plain records (mesh bytes travel in buffers
+//! taken from a pool filled at start), and when a queue or the pool is full the record is dropped and
+//! counted — reported in the statistics and written as an event, never silent.
+//!
+//! The file has the protobuf schemas of `proto/palpa.proto` embedded, zstd-compressed chunks closed at
+//! least once per simulated second (and by size), so a daemon killed mid-session loses at most the
+//! last second; the scene file and the meshes it loaded are attachments. Log times are simulation
+//! time (tick × dt); wall-clock receive times are inside the messages.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+
+use crossbeam_queue::ArrayQueue;
+use prost::Message;
+
+use super::DESCRIPTOR_SET;
+use super::proto;
+use crate::ipc::payload::{MESH_KEYFRAME, MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1};
+use crate::scene::Scene;
+use crate::world::World;
+
+/// Records the tick hands to the recorder.
+#[derive(Debug)]
+pub enum Record {
+    /// A pose used for a tool, applied before stepping from `tick`.
+    Input {
+        /// Tick it applies at.
+        tick: u64,
+        /// Tool index.
+        tool: u16,
+        /// The pose as received.
+        pose: ToolPoseV1,
+        /// CLOCK_MONOTONIC when the daemon read it (ns).
+        receive_wall_time_ns: u64,
+    },
+    /// What a tool felt after a step.
+    Feedback {
+        /// Tool index.
+        tool: u16,
+        /// The feedback as published.
+        feedback: ToolFeedbackV1,
+    },
+    /// A mesh message, its bytes in a pooled buffer (layout of `proto/palpa_ipc.h`).
+    Mesh {
+        /// Header.
+        header: MeshHeaderV1,
+        /// Bytes.
+        data: Vec<u8>,
+    },
+    /// Loop statistics.
+    Stats(StatsV1),
+    /// Something that happened.
+    Event {
+        /// Tick.
+        tick: u64,
+        /// `proto::event::Kind` value.
+        kind: i32,
+        /// Tool index, or `u16::MAX`.
+        tool: u16,
+    },
+}
+
+/// Sizes of the recorder's queues and chunks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecorderSettings {
+    /// Records the queue holds.
+    pub queue_capacity: usize,
+    /// Pooled mesh buffers.
+    pub mesh_buffers: usize,
+    /// Largest uncompressed chunk (bytes).
+    pub chunk_bytes: u64,
+    /// Ticks between forced chunk closes.
+    pub flush_every_ticks: u64,
+}
+
+impl Default for RecorderSettings {
+    fn default() -> Self {
+        Self {
+            queue_capacity: 1 << 16,
+            mesh_buffers: 64,
+            chunk_bytes: 4 << 20,
+            flush_every_ticks: 1000,
+        }
+    }
+}
+
+/// What the recorder wrote.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecordingSummary {
+    /// Messages written per topic.
+    pub messages: BTreeMap<String, u64>,
+    /// Records dropped because a queue or the pool was full.
+    pub dropped: u64,
+}
+
+/// The tick side of the recorder.
+pub struct Recorder {
+    queue: Arc<ArrayQueue<Record>>,
+    pool: Arc<ArrayQueue<Vec<u8>>>,
+    dropped: Arc<AtomicU64>,
+    done: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<RecordingSummary, String>>>,
+}
+
+impl Recorder {
+    /// Creates the file, writes the scene and its assets, and starts the writer thread.
+    pub fn start(
+        path: &Path,
+        scene: &Scene,
+        world: &World,
+        settings: RecorderSettings,
+    ) -> Result<Self, String> {
+        let file =
+            File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .chunk_size(Some(settings.chunk_bytes))
+            .profile("palpa")
+            .library(concat!("palpa ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(|e| format!("cannot start the MCAP file: {e}"))?;
+        let mut channels = Channels::new(&mut writer, world).map_err(|e| e.to_string())?;
+        let scene_message = scene_record(scene, world);
+        channels
+            .write(
+                &mut writer,
+                "/palpa/scene",
+                0,
+                &scene_message.encode_to_vec(),
+            )
+            .map_err(|e| e.to_string())?;
+        attach_assets(&mut writer, scene).map_err(|e| e.to_string())?;
+        writer.flush().map_err(|e| e.to_string())?;
+
+        let queue = Arc::new(ArrayQueue::new(settings.queue_capacity));
+        let pool = Arc::new(ArrayQueue::new(settings.mesh_buffers.max(1)));
+        let mesh_bytes = world
+            .bodies
+            .iter()
+            .map(|b| crate::display::max_message_bytes(b.node_count(), b.surface.triangles.len()))
+            .max()
+            .unwrap_or(0);
+        for _ in 0..settings.mesh_buffers.max(1) {
+            let _ = pool.push(Vec::with_capacity(mesh_bytes));
+        }
+        let dropped = Arc::new(AtomicU64::new(0));
+        let done = Arc::new(AtomicBool::new(false));
+        let thread_state = WriterThread {
+            queue: queue.clone(),
+            pool: pool.clone(),
+            done: done.clone(),
+            dropped: dropped.clone(),
+            writer,
+            channels,
+            dt_ns: (world.params.dt * 1e9).round() as u64,
+            tool_names: world.tools.iter().map(|t| t.name.clone()).collect(),
+            flush_every_ticks: settings.flush_every_ticks.max(1),
+        };
+        let thread = std::thread::Builder::new()
+            .name("palpa-recorder".into())
+            .spawn(move || thread_state.run())
+            .map_err(|e| format!("cannot start the recorder thread: {e}"))?;
+        Ok(Self {
+            queue,
+            pool,
+            dropped,
+            done,
+            thread: Some(thread),
+        })
+    }
+
+    /// Hands a record to the writer; never blocks. Returns false (and counts it) when the queue was
+    /// full.
+    pub fn push(&self, record: Record) -> bool {
+        match self.queue.push(record) {
+            Ok(()) => true,
+            Err(rejected) => {
+                if let Record::Mesh { data, .. } = rejected {
+                    let _ = self.pool.push(data);
+                }
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                false
+            }
+        }
+    }
+
+    /// Copies a mesh message into a pooled buffer and hands it over; counts a drop when no buffer
+    /// is free. Never allocates: buffers were sized for the largest message at start.
+    pub fn push_mesh(&self, header: &MeshHeaderV1, bytes: &[u8]) -> bool {
+        let Some(mut data) = self.pool.pop() else {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return false;
+        };
+        data.clear();
+        data.extend_from_slice(bytes);
+        self.push(Record::Mesh {
+            header: *header,
+            data,
+        })
+    }
+
+    /// Records dropped so far.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Drains the queue, writes the summary and closes the file.
+    pub fn finish(mut self) -> Result<RecordingSummary, String> {
+        self.done.store(true, Ordering::Release);
+        match self.thread.take() {
+            Some(t) => t
+                .join()
+                .map_err(|_| "the recorder thread panicked".to_string())?,
+            None => Ok(RecordingSummary::default()),
+        }
+    }
+}
+
+/// Topic → channel id, with the schemas registered.
+struct Channels {
+    ids: BTreeMap<String, u16>,
+    counts: BTreeMap<String, u64>,
+    sequence: u32,
+}
+
+const TOPIC_SCENE: &str = "/palpa/scene";
+const TOPIC_KEYFRAME: &str = "/palpa/mesh/keyframe";
+const TOPIC_DELTA: &str = "/palpa/mesh/delta";
+const TOPIC_STATS: &str = "/palpa/stats";
+const TOPIC_EVENTS: &str = "/palpa/events";
+
+/// Topic of a tool's inputs.
+pub fn input_topic(tool: &str) -> String {
+    format!("/palpa/tool/{tool}/input")
+}
+
+/// Topic of a tool's feedback.
+pub fn feedback_topic(tool: &str) -> String {
+    format!("/palpa/tool/{tool}/feedback")
+}
+
+impl Channels {
+    fn new<W: std::io::Write + std::io::Seek>(
+        writer: &mut mcap::Writer<W>,
+        world: &World,
+    ) -> mcap::McapResult<Self> {
+        let mut schema = BTreeMap::new();
+        for name in [
+            "Scene",
+            "ToolInput",
+            "Feedback",
+            "MeshKeyframe",
+            "MeshDelta",
+            "Stats",
+            "Event",
+        ] {
+            let id = writer.add_schema(&format!("palpa.{name}"), "protobuf", DESCRIPTOR_SET)?;
+            schema.insert(name, id);
+        }
+        let mut topics: Vec<(String, &str)> = vec![
+            (TOPIC_SCENE.into(), "Scene"),
+            (TOPIC_KEYFRAME.into(), "MeshKeyframe"),
+            (TOPIC_DELTA.into(), "MeshDelta"),
+            (TOPIC_STATS.into(), "Stats"),
+            (TOPIC_EVENTS.into(), "Event"),
+        ];
+        for tool in &world.tools {
+            topics.push((input_topic(&tool.name), "ToolInput"));
+            topics.push((feedback_topic(&tool.name), "Feedback"));
+        }
+        let mut ids = BTreeMap::new();
+        for (topic, message) in topics {
+            let id = writer.add_channel(schema[message], &topic, "protobuf", &BTreeMap::new())?;
+            ids.insert(topic, id);
+        }
+        Ok(Self {
+            ids,
+            counts: BTreeMap::new(),
+            sequence: 0,
+        })
+    }
+
+    fn write<W: std::io::Write + std::io::Seek>(
+        &mut self,
+        writer: &mut mcap::Writer<W>,
+        topic: &str,
+        log_time: u64,
+        data: &[u8],
+    ) -> mcap::McapResult<()> {
+        let channel_id = self.ids[topic];
+        self.sequence = self.sequence.wrapping_add(1);
+        writer.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: self.sequence,
+                log_time,
+                publish_time: log_time,
+            },
+            data,
+        )?;
+        *self.counts.entry(topic.to_string()).or_default() += 1;
+        Ok(())
+    }
+}
+
+/// The scene message of a session.
+pub fn scene_record(scene: &Scene, world: &World) -> proto::Scene {
+    proto::Scene {
+        name: scene.name.clone(),
+        source: scene.source.clone(),
+        dt: world.params.dt,
+        bodies: world.bodies.iter().map(|b| b.name.clone()).collect(),
+        tools: world.tools.iter().map(|t| t.name.clone()).collect(),
+        systems: world
+            .systems()
+            .names()
+            .into_iter()
+            .map(String::from)
+            .collect(),
+        palpa_version: env!("CARGO_PKG_VERSION").into(),
+        body_nodes: world.bodies.iter().map(|b| b.node_count() as u32).collect(),
+        body_triangles: world
+            .bodies
+            .iter()
+            .map(|b| b.surface.triangles.len() as u32)
+            .collect(),
+    }
+}
+
+/// Attaches the scene text and every mesh file it loaded, named by their path relative to the scene.
+fn attach_assets<W: std::io::Write + std::io::Seek>(
+    writer: &mut mcap::Writer<W>,
+    scene: &Scene,
+) -> Result<(), String> {
+    writer
+        .attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: "scene.toml".into(),
+            media_type: "application/toml".into(),
+            data: std::borrow::Cow::Borrowed(scene.source.as_bytes()),
+        })
+        .map_err(|e| e.to_string())?;
+    for (relative, path) in &scene.asset_names {
+        let data =
+            std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        writer
+            .attach(&mcap::Attachment {
+                log_time: 0,
+                create_time: 0,
+                name: relative.clone(),
+                media_type: "model/obj".into(),
+                data: std::borrow::Cow::Owned(data),
+            })
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+fn vec3(v: [f64; 3]) -> Option<proto::Vec3> {
+    Some(proto::Vec3 {
+        x: v[0],
+        y: v[1],
+        z: v[2],
+    })
+}
+
+/// The protobuf message of a feedback record (what replay re-encodes to compare).
+pub fn feedback_message(tool: &str, feedback: &ToolFeedbackV1) -> proto::Feedback {
+    proto::Feedback {
+        tick: feedback.tick,
+        tool: tool.into(),
+        force: vec3(feedback.force),
+        torque: vec3(feedback.torque),
+        contacts: feedback.contacts,
+        flags: feedback.flags,
+        seq: feedback.seq,
+    }
+}
+
+/// The protobuf message of a mesh record: a keyframe or a delta, from the IPC layout bytes.
+pub fn mesh_message(header: &MeshHeaderV1, data: &[u8]) -> (bool, Vec<u8>) {
+    let f32_at = |at: usize| f32::from_le_bytes(data[at..at + 4].try_into().expect("four bytes"));
+    let u32_at = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().expect("four bytes"));
+    if header.kind == MESH_KEYFRAME {
+        let n = header.vertex_count as usize;
+        let t = header.triangle_count as usize;
+        let message = proto::MeshKeyframe {
+            tick: header.tick,
+            body: header.body,
+            positions: (0..3 * n).map(|k| f32_at(4 * k)).collect(),
+            triangles: (0..3 * t).map(|k| u32_at(12 * n + 4 * k)).collect(),
+        };
+        (true, message.encode_to_vec())
+    } else {
+        let c = header.changed_count as usize;
+        let message = proto::MeshDelta {
+            tick: header.tick,
+            body: header.body,
+            base_tick: header.base_tick,
+            vertex_count: header.vertex_count,
+            vertices: (0..c).map(|e| u32_at(16 * e)).collect(),
+            positions: (0..c)
+                .flat_map(|e| (0..3).map(move |k| (e, k)))
+                .map(|(e, k)| f32_at(16 * e + 4 + 4 * k))
+                .collect(),
+        };
+        (false, message.encode_to_vec())
+    }
+}
+
+/// The protobuf message of a statistics record.
+pub fn stats_message(s: &StatsV1, dropped: u64) -> proto::Stats {
+    proto::Stats {
+        tick: s.tick,
+        window_ticks: s.window_ticks,
+        compute_min_us: s.compute_min_us,
+        compute_mean_us: s.compute_mean_us,
+        compute_max_us: s.compute_max_us,
+        compute_p99_us: s.compute_p99_us,
+        lateness_mean_us: s.lateness_mean_us,
+        lateness_max_us: s.lateness_max_us,
+        synchronicity_misses: s.synchronicity_misses,
+        rejected_inputs: s.rejected_inputs,
+        disconnects: s.disconnects,
+        active_systems: s.active_systems,
+        tools_connected: s.tools_connected,
+        paused: s.paused != 0,
+        dropped_records: dropped,
+    }
+}
+
+struct WriterThread {
+    queue: Arc<ArrayQueue<Record>>,
+    pool: Arc<ArrayQueue<Vec<u8>>>,
+    done: Arc<AtomicBool>,
+    dropped: Arc<AtomicU64>,
+    writer: mcap::Writer<BufWriter<File>>,
+    channels: Channels,
+    dt_ns: u64,
+    tool_names: Vec<String>,
+    flush_every_ticks: u64,
+}
+
+impl WriterThread {
+    fn run(mut self) -> Result<RecordingSummary, String> {
+        let mut last_flush_tick = 0u64;
+        let mut reported_drops = 0u64;
+        loop {
+            let finishing = self.done.load(Ordering::Acquire);
+            let mut wrote = false;
+            while let Some(record) = self.queue.pop() {
+                wrote = true;
+                let tick = self.write(record).map_err(|e| format!("recording: {e}"))?;
+                if tick >= last_flush_tick + self.flush_every_ticks {
+                    // Close the chunk: what is on disk stays readable if the process dies now.
+                    self.writer.flush().map_err(|e| format!("recording: {e}"))?;
+                    last_flush_tick = tick;
+                }
+            }
+            let dropped = self.dropped.load(Ordering::Relaxed);
+            if dropped > reported_drops {
+                let event = proto::Event {
+                    tick: last_flush_tick,
+                    kind: proto::event::Kind::RecordDropped as i32,
+                    tool: String::new(),
+                    detail: format!(
+                        "{} records dropped (queue or mesh pool full)",
+                        dropped - reported_drops
+                    ),
+                };
+                self.channels
+                    .write(
+                        &mut self.writer,
+                        TOPIC_EVENTS,
+                        last_flush_tick * self.dt_ns,
+                        &event.encode_to_vec(),
+                    )
+                    .map_err(|e| e.to_string())?;
+                reported_drops = dropped;
+            }
+            if finishing && self.queue.is_empty() {
+                break;
+            }
+            if !wrote {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+        self.writer
+            .finish()
+            .map_err(|e| format!("closing the recording: {e}"))?;
+        Ok(RecordingSummary {
+            messages: self.channels.counts,
+            dropped: self.dropped.load(Ordering::Relaxed),
+        })
+    }
+
+    fn tool_name(&self, tool: u16) -> String {
+        self.tool_names
+            .get(tool as usize)
+            .cloned()
+            .unwrap_or_default()
+    }
+
+    /// Writes one record; returns its tick.
+    fn write(&mut self, record: Record) -> mcap::McapResult<u64> {
+        let dt = self.dt_ns;
+        match record {
+            Record::Input {
+                tick,
+                tool,
+                pose,
+                receive_wall_time_ns,
+            } => {
+                let name = self.tool_name(tool);
+                let [w, x, y, z] = pose.orientation;
+                let message = proto::ToolInput {
+                    tick,
+                    tool: name.clone(),
+                    position: vec3(pose.position),
+                    orientation: Some(proto::Quaternion { w, x, y, z }),
+                    jaw: pose.jaw,
+                    seq: pose.seq,
+                    device_time_ns: pose.device_time_ns,
+                    receive_wall_time_ns,
+                    buttons: pose.buttons,
+                };
+                self.channels.write(
+                    &mut self.writer,
+                    &input_topic(&name),
+                    tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(tick)
+            }
+            Record::Feedback { tool, feedback } => {
+                let name = self.tool_name(tool);
+                let message = feedback_message(&name, &feedback);
+                self.channels.write(
+                    &mut self.writer,
+                    &feedback_topic(&name),
+                    feedback.tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(feedback.tick)
+            }
+            Record::Mesh { header, data } => {
+                let (keyframe, bytes) =
+                    mesh_message(&header, &data[..header.payload_bytes as usize]);
+                let _ = self.pool.push(data);
+                let topic = if keyframe {
+                    TOPIC_KEYFRAME
+                } else {
+                    TOPIC_DELTA
+                };
+                self.channels
+                    .write(&mut self.writer, topic, header.tick * dt, &bytes)?;
+                Ok(header.tick)
+            }
+            Record::Stats(stats) => {
+                let message = stats_message(&stats, self.dropped.load(Ordering::Relaxed));
+                self.channels.write(
+                    &mut self.writer,
+                    TOPIC_STATS,
+                    stats.tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(stats.tick)
+            }
+            Record::Event { tick, kind, tool } => {
+                let message = proto::Event {
+                    tick,
+                    kind,
+                    tool: if tool == u16::MAX {
+                        String::new()
+                    } else {
+                        self.tool_name(tool)
+                    },
+                    detail: String::new(),
+                };
+                self.channels.write(
+                    &mut self.writer,
+                    TOPIC_EVENTS,
+                    tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(tick)
+            }
+        }
+    }
+}
+
+/// Where a scene's asset should go when a recording is unpacked: `relative` joined to `dir`.
+pub fn asset_path(dir: &Path, relative: &str) -> PathBuf {
+    dir.join(relative)
+}
