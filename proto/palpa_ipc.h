@@ -79,7 +79,7 @@ typedef struct {
     uint32_t active_systems;        /* PALPA_SYSTEM_* bits */
     uint32_t tools_connected;       /* bit i: tool i (scene order) has a fresh pose */
     uint32_t paused;                /* 1 while paused */
-    uint32_t reserved;              /* 0 */
+    uint32_t dropped_records;       /* total: records the recorder dropped (0 when not recording) */
 } palpa_stats_v1;                   /* 104 bytes */
 
 /* Control commands. */

@@ -43,6 +43,10 @@ enum Command {
         /// Write the tools' feedback here, one row per tick per tool.
         #[arg(long)]
         feedback: Option<PathBuf>,
+        /// Record the session to this MCAP file.
+        #[cfg(feature = "record")]
+        #[arg(long)]
+        record: Option<PathBuf>,
     },
     /// Validate a scene and print a summary: bodies, systems switched on, stability margin.
     Check {
@@ -91,6 +95,10 @@ struct ServeArgs {
     /// Milliseconds without a good pose before a tool is marked disconnected.
     #[arg(long, default_value_t = 100)]
     stale_after_ms: u64,
+    /// Record the session to this MCAP file.
+    #[cfg(feature = "record")]
+    #[arg(long)]
+    record: Option<PathBuf>,
 }
 
 fn main() -> Result<()> {
@@ -102,12 +110,18 @@ fn main() -> Result<()> {
             trace,
             trace_every,
             feedback,
+            #[cfg(feature = "record")]
+            record,
         } => run(
             scene.as_deref(),
             duration,
             trace.as_deref(),
             trace_every,
             feedback.as_deref(),
+            #[cfg(feature = "record")]
+            record.as_deref(),
+            #[cfg(not(feature = "record"))]
+            None,
         ),
         Command::Check { scene } => check(scene.as_deref()),
         #[cfg(feature = "ipc")]
@@ -124,6 +138,101 @@ fn scene_from(path: Option<&Path>) -> Result<Scene> {
     }
 }
 
+/// Recording of a headless run: the poses every active tool used, its feedback, and the mesh stream
+/// at 60 Hz with a keyframe every 2 s (what a daemon session records, so replay treats both alike).
+struct Recording {
+    #[cfg(feature = "record")]
+    sink: palpa::daemon::sink::RecordSink,
+    #[cfg(feature = "record")]
+    meshes: std::cell::RefCell<palpa::display::MeshSchedule>,
+}
+
+impl Recording {
+    #[cfg(feature = "record")]
+    fn start(path: Option<&Path>, scene: &Scene, world: &World) -> Result<Self> {
+        use palpa::daemon::sink::RecordSink;
+        use palpa::record::recorder::{Recorder, RecorderSettings, SessionInfo};
+        let Some(path) = path else {
+            return Ok(Self {
+                sink: RecordSink::none(),
+                meshes: std::cell::RefCell::new(palpa::display::MeshSchedule::new(
+                    world, 60.0, 2.0,
+                )),
+            });
+        };
+        let session = SessionInfo {
+            mode: "run".into(),
+            display_rate_hz: 60.0,
+            keyframe_every_s: 2.0,
+        };
+        let recorder = Recorder::start(path, scene, world, &session, RecorderSettings::default())
+            .map_err(|e| anyhow::anyhow!(e))?;
+        let this = Self {
+            sink: RecordSink::to(recorder),
+            meshes: std::cell::RefCell::new(palpa::display::MeshSchedule::new(world, 60.0, 2.0)),
+        };
+        this.mesh(world);
+        Ok(this)
+    }
+
+    #[cfg(not(feature = "record"))]
+    fn start(path: Option<&Path>, _scene: &Scene, _world: &World) -> Result<Self> {
+        if path.is_some() {
+            bail!("this build has no recording (feature `record`)");
+        }
+        Ok(Self {})
+    }
+
+    #[cfg(feature = "record")]
+    fn mesh(&self, world: &World) {
+        let _ = self
+            .meshes
+            .borrow_mut()
+            .produce(world, |header, bytes| -> Result<(), ()> {
+                self.sink.mesh(header, bytes);
+                Ok(())
+            });
+    }
+
+    fn after_step(&self, world: &World) {
+        #[cfg(feature = "record")]
+        {
+            use palpa::ipc::payload::ToolPoseV1;
+            let before = world.tick - 1;
+            for (i, tool) in world.tools.iter().enumerate() {
+                if tool.active {
+                    let q = tool.pose.world_from_tool.quaternion();
+                    let pose = ToolPoseV1 {
+                        seq: world.tick,
+                        device_time_ns: 0,
+                        position: tool.pose.position_in_world.into(),
+                        orientation: [q.w, q.i, q.j, q.k],
+                        jaw: tool.jaw,
+                        buttons: 0,
+                        reserved: 0,
+                    };
+                    self.sink.input(before, i, &pose, 0);
+                }
+                let feedback =
+                    palpa::daemon::feedback_payload(tool, world.tick, tool.active, false, (0, 0));
+                self.sink.feedback(i, &feedback);
+            }
+            self.mesh(world);
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = world;
+    }
+
+    fn finish(self) -> Result<()> {
+        #[cfg(feature = "record")]
+        if let Some(summary) = self.sink.finish().map_err(|e| anyhow::anyhow!(e))? {
+            let total: u64 = summary.messages.values().sum();
+            println!("recorded {total} messages ({} dropped)", summary.dropped);
+        }
+        Ok(())
+    }
+}
+
 fn create(path: &Path) -> Result<BufWriter<std::fs::File>> {
     let file =
         std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
@@ -136,6 +245,7 @@ fn run(
     trace: Option<&Path>,
     trace_every: u64,
     feedback: Option<&Path>,
+    record: Option<&Path>,
 ) -> Result<()> {
     if !(duration.is_finite() && duration >= 0.0) {
         bail!("--duration must be a finite number of seconds ≥ 0, found {duration}");
@@ -163,9 +273,11 @@ fn run(
         }
         None => None,
     };
+    let recording = Recording::start(record, &scene, &world)?;
     let started = Instant::now();
     for _ in 0..ticks {
         world.step();
+        recording.after_step(&world);
         if let Some(w) = out.as_mut()
             && world.tick % trace_every == 0
         {
@@ -176,6 +288,7 @@ fn run(
         }
     }
     let wall = started.elapsed().as_secs_f64();
+    recording.finish()?;
     for w in [out, feedback_out].into_iter().flatten() {
         w.into_inner()
             .map_err(|e| anyhow::anyhow!("cannot write a trace: {}", e.error()))?
@@ -278,9 +391,44 @@ fn serve(args: ServeArgs) -> Result<()> {
     println!("  systems: {}", world.systems().names().join(", "));
     drop(world);
     let sim_stop = stop.clone();
+    #[cfg(feature = "record")]
+    let record = args.record.clone();
     let handle = std::thread::Builder::new()
         .name("palpa-sim".into())
-        .spawn(move || serve(&scene, &options, sim_stop).map_err(|e| e.to_string()))
+        .spawn(move || -> Result<_, String> {
+            #[cfg(feature = "record")]
+            let sink = match &record {
+                Some(path) => {
+                    use palpa::record::recorder::{Recorder, RecorderSettings, SessionInfo};
+                    let session = SessionInfo {
+                        mode: "serve".into(),
+                        display_rate_hz: options.display_rate_hz,
+                        keyframe_every_s: options.keyframe_every_s,
+                    };
+                    let world = World::from_scene(&scene);
+                    palpa::daemon::sink::RecordSink::to(Recorder::start(
+                        path,
+                        &scene,
+                        &world,
+                        &session,
+                        RecorderSettings::default(),
+                    )?)
+                }
+                None => palpa::daemon::sink::RecordSink::none(),
+            };
+            #[cfg(not(feature = "record"))]
+            let sink = palpa::daemon::sink::RecordSink::none();
+            let summary = serve(&scene, &options, sim_stop, &sink).map_err(|e| e.to_string())?;
+            #[cfg(feature = "record")]
+            if let Some(recording) = sink.finish()? {
+                let total: u64 = recording.messages.values().sum();
+                println!(
+                    "palpa serve: recorded {total} messages ({} dropped)",
+                    recording.dropped
+                );
+            }
+            Ok(summary)
+        })
         .context("cannot start the simulation thread")?;
     let summary = handle
         .join()

@@ -56,7 +56,7 @@ const TYPES: &[(&str, &[&str])] = &[
             "active_systems",
             "tools_connected",
             "paused",
-            "reserved",
+            "dropped_records",
         ],
     ),
     (
@@ -154,7 +154,7 @@ fn rust_payloads_match_the_c_header() {
             active_systems,
             tools_connected,
             paused,
-            reserved
+            dropped_records
         ]
     );
     rust_layout!(

@@ -4,6 +4,7 @@
 pub mod input;
 #[cfg(feature = "ipc")]
 pub mod serve;
+pub mod sink;
 pub mod stats;
 
 use crate::ipc::payload::{

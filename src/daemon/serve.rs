@@ -17,6 +17,7 @@ use iceoryx2::port::update_connections::UpdateConnections;
 
 use crate::daemon::feedback_payload;
 use crate::daemon::input::{InputLimits, ToolInputState};
+use crate::daemon::sink::{RecordSink, event};
 use crate::daemon::stats::LoopStats;
 use crate::display::MeshSchedule;
 use crate::ipc::payload::*;
@@ -126,11 +127,24 @@ fn active_system_bits(world: &World) -> u32 {
     bits
 }
 
+fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the valid timespec we pass.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
 /// Runs the daemon on the calling thread until `stop` is set or the duration is reached.
 pub fn serve(
     scene: &Scene,
     options: &ServeOptions,
     stop: Arc<AtomicBool>,
+    sink: &RecordSink,
 ) -> Result<ServeSummary, IpcError> {
     if options.realtime {
         for warning in setup_realtime() {
@@ -235,6 +249,7 @@ pub fn serve(
             let command = request.payload().command;
             let status = match command {
                 CONTROL_RESET => {
+                    sink.event(world.tick, event::RESET, None);
                     world = World::from_scene(scene);
                     meshes.reset(&world);
                     for input in &mut inputs {
@@ -243,10 +258,12 @@ pub fn serve(
                     0
                 }
                 CONTROL_PAUSE => {
+                    sink.event(world.tick, event::PAUSE, None);
                     paused = true;
                     0
                 }
                 CONTROL_RESUME => {
+                    sink.event(world.tick, event::RESUME, None);
                     paused = false;
                     0
                 }
@@ -270,19 +287,24 @@ pub fn serve(
                 newest = Some(*sample.payload());
             }
             inputs[k].rejected_this_tick = false;
-            if let Some(pose) = newest
-                && let Ok((tool_pose, jaw)) =
-                    inputs[k].offer(&pose, world.tick, dt, &options.limits)
-            {
-                world.tools[tool_index].set_target(tool_pose, jaw);
-                echo[k] = (pose.seq, pose.device_time_ns);
+            if let Some(pose) = newest {
+                match inputs[k].offer(&pose, world.tick, dt, &options.limits) {
+                    Ok((tool_pose, jaw)) => {
+                        world.tools[tool_index].set_target(tool_pose, jaw);
+                        echo[k] = (pose.seq, pose.device_time_ns);
+                        sink.input(world.tick, tool_index, &pose, monotonic_ns());
+                    }
+                    Err(_) => sink.event(world.tick, event::INPUT_REJECTED, Some(tool_index)),
+                }
             }
             if inputs[k].update_staleness(world.tick, &options.limits) {
                 world.tools[tool_index].deactivate();
+                sink.event(world.tick, event::DISCONNECT, Some(tool_index));
             }
         }
 
-        if !paused {
+        let stepped = !paused;
+        if stepped {
             world.step();
         }
 
@@ -296,19 +318,28 @@ pub fn serve(
                 echo[k],
             );
             feedback_publishers[k].send_copy(payload)?;
+            if stepped {
+                sink.feedback(tool_index, &payload);
+            }
         }
 
         // Display.
-        meshes.produce(&world, |header, bytes| -> Result<(), IpcError> {
-            let mut sample = mesh_publisher.loan_slice_uninit(bytes.len())?;
-            *sample.user_header_mut() = *header;
-            sample.write_from_slice(bytes).send()?;
-            Ok(())
-        })?;
+        if stepped {
+            meshes.produce(&world, |header, bytes| -> Result<(), IpcError> {
+                let mut sample = mesh_publisher.loan_slice_uninit(bytes.len())?;
+                *sample.user_header_mut() = *header;
+                sample.write_from_slice(bytes).send()?;
+                sink.mesh(header, bytes);
+                Ok(())
+            })?;
+        }
 
         // Statistics.
         let compute_us = started.elapsed().as_secs_f64() * 1e6;
         stats.record(compute_us, lateness_us, period_us);
+        if compute_us > period_us {
+            sink.event(world.tick, event::SYNCHRONICITY_MISS, None);
+        }
         summary.compute_max_us = summary.compute_max_us.max(compute_us);
         summary.compute_mean_us += compute_us;
         if stats.window_ticks() >= 1000 {
@@ -323,7 +354,9 @@ pub fn serve(
                 .filter(|(_, i)| i.connected)
                 .fold(0u32, |bits, (&t, _)| bits | (1u32 << t.min(31)));
             stats_out.paused = paused as u32;
+            stats_out.dropped_records = sink.dropped().min(u32::MAX as u64) as u32;
             stats_publisher.send_copy(stats_out)?;
+            sink.stats(&stats_out);
         }
         summary.ticks += 1;
         deadline += period;

@@ -302,6 +302,7 @@ pub struct MeshSchedule {
     encoders: Vec<MeshEncoder>,
     scratch: Vec<u8>,
     keyframe_requested: bool,
+    next_keyframe: u64,
 }
 
 impl MeshSchedule {
@@ -326,6 +327,7 @@ impl MeshSchedule {
                 .collect(),
             scratch: vec![0; bytes],
             keyframe_requested: true,
+            next_keyframe: 0,
         }
     }
 
@@ -355,10 +357,14 @@ impl MeshSchedule {
         mut emit: impl FnMut(&MeshHeaderV1, &[u8]) -> Result<(), E>,
     ) -> Result<(), E> {
         let tick = world.tick;
-        if tick % self.display_every != 0 && !self.keyframe_requested {
+        let keyframe_due = self.keyframe_requested || tick >= self.next_keyframe;
+        if tick % self.display_every != 0 && !keyframe_due {
             return Ok(());
         }
-        let keyframe = self.keyframe_requested || tick % self.keyframe_every == 0;
+        let keyframe = keyframe_due;
+        if keyframe {
+            self.next_keyframe = tick + self.keyframe_every;
+        }
         for (encoder, body) in self.encoders.iter_mut().zip(&world.bodies) {
             let s = &body.surface;
             let header = if keyframe {

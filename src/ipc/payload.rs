@@ -121,8 +121,8 @@ pub struct StatsV1 {
     pub tools_connected: u32,
     /// 1 while paused.
     pub paused: u32,
-    /// 0.
-    pub reserved: u32,
+    /// Total records the recorder had to drop (queue full); 0 when not recording.
+    pub dropped_records: u32,
 }
 
 /// Control command: rebuild the world from the scene, back to tick 0.

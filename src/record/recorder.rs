@@ -114,6 +114,7 @@ impl Recorder {
         path: &Path,
         scene: &Scene,
         world: &World,
+        session: &SessionInfo,
         settings: RecorderSettings,
     ) -> Result<Self, String> {
         let file =
@@ -127,7 +128,7 @@ impl Recorder {
             .create(BufWriter::new(file))
             .map_err(|e| format!("cannot start the MCAP file: {e}"))?;
         let mut channels = Channels::new(&mut writer, world).map_err(|e| e.to_string())?;
-        let scene_message = scene_record(scene, world);
+        let scene_message = scene_record(scene, world, session);
         channels
             .write(
                 &mut writer,
@@ -310,9 +311,23 @@ impl Channels {
     }
 }
 
+/// How a session ran (what replay needs to reproduce it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionInfo {
+    /// "run" or "serve".
+    pub mode: String,
+    /// Mesh messages per second.
+    pub display_rate_hz: f64,
+    /// Seconds between periodic keyframes.
+    pub keyframe_every_s: f64,
+}
+
 /// The scene message of a session.
-pub fn scene_record(scene: &Scene, world: &World) -> proto::Scene {
+pub fn scene_record(scene: &Scene, world: &World, session: &SessionInfo) -> proto::Scene {
     proto::Scene {
+        mode: session.mode.clone(),
+        display_rate_hz: session.display_rate_hz,
+        keyframe_every_s: session.keyframe_every_s,
         name: scene.name.clone(),
         source: scene.source.clone(),
         dt: world.params.dt,

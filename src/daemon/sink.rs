@@ -1,0 +1,124 @@
+//! Where the tick hands what is to be recorded: a recorder when the session is recorded (feature
+//! `record`), nothing otherwise. Every call is non-blocking and allocation-free.
+
+use crate::ipc::payload::{MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1};
+
+/// Event kinds, numbered as `palpa.Event.Kind` in `proto/palpa.proto`.
+pub mod event {
+    /// A pose was rejected by the input checks.
+    pub const INPUT_REJECTED: i32 = 1;
+    /// A tool went stale.
+    pub const DISCONNECT: i32 = 2;
+    /// The divergence guard acted.
+    pub const DIVERGENCE_GUARD: i32 = 3;
+    /// A tick's compute exceeded the period.
+    pub const SYNCHRONICITY_MISS: i32 = 4;
+    /// The world was reset.
+    pub const RESET: i32 = 6;
+    /// The simulation was paused.
+    pub const PAUSE: i32 = 7;
+    /// The simulation was resumed.
+    pub const RESUME: i32 = 8;
+}
+
+/// The recording side of a session.
+#[derive(Default)]
+pub struct RecordSink {
+    #[cfg(feature = "record")]
+    recorder: Option<crate::record::recorder::Recorder>,
+}
+
+impl RecordSink {
+    /// Records nothing.
+    pub fn none() -> Self {
+        Self::default()
+    }
+
+    /// Records into `recorder`.
+    #[cfg(feature = "record")]
+    pub fn to(recorder: crate::record::recorder::Recorder) -> Self {
+        Self {
+            recorder: Some(recorder),
+        }
+    }
+
+    /// A pose used for tool `tool`, applied before stepping from `tick`.
+    pub fn input(&self, tick: u64, tool: usize, pose: &ToolPoseV1, receive_wall_time_ns: u64) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push(crate::record::recorder::Record::Input {
+                tick,
+                tool: tool as u16,
+                pose: *pose,
+                receive_wall_time_ns,
+            });
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = (tick, tool, pose, receive_wall_time_ns);
+    }
+
+    /// The feedback of tool `tool` after a step.
+    pub fn feedback(&self, tool: usize, feedback: &ToolFeedbackV1) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push(crate::record::recorder::Record::Feedback {
+                tool: tool as u16,
+                feedback: *feedback,
+            });
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = (tool, feedback);
+    }
+
+    /// A mesh message.
+    pub fn mesh(&self, header: &MeshHeaderV1, bytes: &[u8]) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push_mesh(header, bytes);
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = (header, bytes);
+    }
+
+    /// Loop statistics.
+    pub fn stats(&self, stats: &StatsV1) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push(crate::record::recorder::Record::Stats(*stats));
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = stats;
+    }
+
+    /// An event (`kind` from [`event`]); `tool` is `None` for the whole session.
+    pub fn event(&self, tick: u64, kind: i32, tool: Option<usize>) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push(crate::record::recorder::Record::Event {
+                tick,
+                kind,
+                tool: tool.map_or(u16::MAX, |t| t as u16),
+            });
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = (tick, kind, tool);
+    }
+
+    /// Records dropped so far.
+    pub fn dropped(&self) -> u64 {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            return r.dropped();
+        }
+        0
+    }
+
+    /// Closes the recording; returns the messages written per topic and the drops.
+    #[cfg(feature = "record")]
+    pub fn finish(self) -> Result<Option<crate::record::recorder::RecordingSummary>, String> {
+        match self.recorder {
+            Some(r) => r.finish().map(Some),
+            None => Ok(None),
+        }
+    }
+}
