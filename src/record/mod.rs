@@ -11,3 +11,4 @@ pub const DESCRIPTOR_SET: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/palpa_descriptor_set.bin"));
 
 pub mod recorder;
+pub mod replay;
