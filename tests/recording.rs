@@ -7,7 +7,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use palpa::record::proto;
-use palpa::record::replay::{VerifyError, read_recording_file, summarise, verify, write_recording};
+use palpa::record::replay::{read_recording_file, summarise, verify, write_recording};
 use prost::Message;
 
 fn temp(name: &str) -> PathBuf {
