@@ -12,3 +12,4 @@ pub const DESCRIPTOR_SET: &[u8] =
 
 pub mod recorder;
 pub mod replay;
+pub mod visual;

@@ -162,6 +162,11 @@ impl Recorder {
             channels,
             dt_ns: (world.params.dt * 1e9).round() as u64,
             tool_names: world.tools.iter().map(|t| t.name.clone()).collect(),
+            body_names: world.bodies.iter().map(|b| b.name.clone()).collect(),
+            visual: super::visual::VisualState::new(
+                world.bodies.len(),
+                world.tools.iter().map(|t| t.shape.clone()).collect(),
+            ),
             flush_every_ticks: settings.flush_every_ticks.max(1),
         };
         let thread = std::thread::Builder::new()
@@ -281,6 +286,15 @@ impl Channels {
             let id = writer.add_channel(schema[message], &topic, "protobuf", &BTreeMap::new())?;
             ids.insert(topic, id);
         }
+        let (name, encoding, data) = super::visual::scene_update_schema();
+        let visual_schema = writer.add_schema(&name, &encoding, &data)?;
+        let id = writer.add_channel(
+            visual_schema,
+            super::visual::TOPIC_SCENE_UPDATE,
+            "protobuf",
+            &BTreeMap::new(),
+        )?;
+        ids.insert(super::visual::TOPIC_SCENE_UPDATE.to_string(), id);
         Ok(Self {
             ids,
             counts: BTreeMap::new(),
@@ -461,6 +475,8 @@ struct WriterThread {
     channels: Channels,
     dt_ns: u64,
     tool_names: Vec<String>,
+    body_names: Vec<String>,
+    visual: super::visual::VisualState,
     flush_every_ticks: u64,
 }
 
@@ -536,6 +552,15 @@ impl WriterThread {
             } => {
                 let name = self.tool_name(tool);
                 let [w, x, y, z] = pose.orientation;
+                self.visual.set_tool_pose(
+                    tool as usize,
+                    crate::tool::ToolPose {
+                        position_in_world: pose.position.into(),
+                        world_from_tool: nalgebra::UnitQuaternion::from_quaternion(
+                            nalgebra::Quaternion::new(w, x, y, z),
+                        ),
+                    },
+                );
                 let message = proto::ToolInput {
                     tick,
                     tool: name.clone(),
@@ -557,6 +582,8 @@ impl WriterThread {
             }
             Record::Feedback { tool, feedback } => {
                 let name = self.tool_name(tool);
+                self.visual
+                    .set_tool_force(tool as usize, feedback.force.into());
                 let message = feedback_message(&name, &feedback);
                 self.channels.write(
                     &mut self.writer,
@@ -567,8 +594,9 @@ impl WriterThread {
                 Ok(feedback.tick)
             }
             Record::Mesh { header, data } => {
-                let (keyframe, bytes) =
-                    mesh_message(&header, &data[..header.payload_bytes as usize]);
+                let payload = &data[..header.payload_bytes as usize];
+                let (keyframe, bytes) = mesh_message(&header, payload);
+                let display_tick_done = self.visual.apply_mesh(&header, payload);
                 let _ = self.pool.push(data);
                 let topic = if keyframe {
                     TOPIC_KEYFRAME
@@ -577,6 +605,18 @@ impl WriterThread {
                 };
                 self.channels
                     .write(&mut self.writer, topic, header.tick * dt, &bytes)?;
+                if display_tick_done {
+                    let time = header.tick * dt;
+                    let update = self
+                        .visual
+                        .scene_update(time, &self.body_names, &self.tool_names);
+                    self.channels.write(
+                        &mut self.writer,
+                        super::visual::TOPIC_SCENE_UPDATE,
+                        time,
+                        &update,
+                    )?;
+                }
                 Ok(header.tick)
             }
             Record::Stats(stats) => {
