@@ -435,12 +435,13 @@ fn serve(args: ServeArgs) -> Result<()> {
         .map_err(|_| anyhow::anyhow!("the simulation thread panicked"))?
         .map_err(|e| anyhow::anyhow!("palpa serve: {e}"))?;
     println!(
-        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, tick compute mean {:.1} µs, max {:.1} µs",
+        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, tick compute mean {:.1} µs, p99 {:.0} µs, max {:.1} µs",
         summary.ticks,
         summary.synchronicity_misses,
         summary.rejected_inputs,
         summary.disconnects,
         summary.compute_mean_us,
+        summary.compute_p99_us,
         summary.compute_max_us
     );
     Ok(())

@@ -74,6 +74,8 @@ pub struct ServeSummary {
     pub compute_max_us: f64,
     /// Mean tick compute time (µs): the daemon's share of a round trip, pose read to feedback sent.
     pub compute_mean_us: f64,
+    /// 99th percentile of the tick compute time over the whole run (µs, 1 µs resolution).
+    pub compute_p99_us: f64,
 }
 
 /// Applies the real-time requests one by one; returns a warning for each that was not granted.
@@ -192,6 +194,7 @@ pub fn serve(
     let period = Duration::from_secs_f64(dt);
     let period_us = dt * 1e6;
     let mut stats = LoopStats::default();
+    let mut whole_run = LoopStats::default();
     let mut stats_out = StatsV1::default();
     let mut summary = ServeSummary::default();
     let mut paused = false;
@@ -337,6 +340,7 @@ pub fn serve(
         // Statistics.
         let compute_us = started.elapsed().as_secs_f64() * 1e6;
         stats.record(compute_us, lateness_us, period_us);
+        whole_run.record(compute_us, lateness_us, period_us);
         if compute_us > period_us {
             sink.event(world.tick, event::SYNCHRONICITY_MISS, None);
         }
@@ -367,6 +371,9 @@ pub fn serve(
         }
     }
     summary.compute_mean_us /= summary.ticks.max(1) as f64;
+    let mut overall = StatsV1::default();
+    whole_run.close_window(&mut overall);
+    summary.compute_p99_us = overall.compute_p99_us;
     summary.synchronicity_misses = stats.synchronicity_misses;
     summary.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
     summary.disconnects = inputs.iter().map(|i| i.disconnects).sum();
