@@ -232,3 +232,70 @@ fn a_daemon_killed_while_recording_leaves_a_readable_file() {
     );
     std::fs::remove_file(Path::new(&path)).ok();
 }
+
+#[test]
+fn play_publishes_the_recording_for_a_display() {
+    use palpa::display::DisplayMesh;
+    use palpa::ipc::services::{create_node, feedback_service, mesh_service};
+    let path = record_session("play.mcap");
+    let prefix = format!("play{}", std::process::id());
+    let node = create_node().unwrap();
+    let mesh = mesh_service(&node, &prefix)
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let feedback = feedback_service(&node, &prefix, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let mut player = Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .args([
+            path.to_str().unwrap(),
+            "--play",
+            "--speed",
+            "10",
+            "--prefix",
+            &prefix,
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut display = DisplayMesh::default();
+    let mut last_feedback_tick = 0;
+    let started = Instant::now();
+    loop {
+        while let Some(sample) = mesh.receive().unwrap() {
+            let _ = display.apply(sample.user_header(), sample.payload());
+        }
+        while let Some(sample) = feedback.receive().unwrap() {
+            last_feedback_tick = last_feedback_tick.max(sample.payload().tick);
+        }
+        if let Some(status) = player.try_wait().unwrap() {
+            assert!(status.success());
+            break;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "playback hangs"
+        );
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    while let Some(sample) = mesh.receive().unwrap() {
+        let _ = display.apply(sample.user_header(), sample.payload());
+    }
+    // The display followed the recorded stream to its end; the last feedback came through.
+    let recording = read_recording_file(&path).unwrap();
+    let last_mesh_tick = recording
+        .messages
+        .iter()
+        .filter(|m| m.topic.starts_with("/palpa/mesh/"))
+        .map(|m| m.log_time / 1_000_000)
+        .max()
+        .unwrap();
+    assert!(display.ready);
+    assert_eq!(display.tick, last_mesh_tick);
+    assert!(last_feedback_tick >= 4990, "{last_feedback_tick}");
+    std::fs::remove_file(path).ok();
+}
