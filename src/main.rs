@@ -311,25 +311,31 @@ fn run(
             0.0
         }
     );
-    for body in &world.bodies {
+    for (b, body) in world.bodies.iter().enumerate() {
         let com = body.surface_centre_of_mass();
         let gap = world
             .min_obstacle_gap(body)
             .map_or("none".to_string(), |g| format!("{g:.6} m"));
         println!(
-            "  {}: com [{:.4}, {:.4}, {:.4}] m, kinetic energy {:.3e} J, min obstacle gap {}{}",
+            "  {}: com [{:.4}, {:.4}, {:.4}] m, kinetic energy {:.3e} J, min obstacle gap {}",
             body.name,
             com.x,
             com.y,
             com.z,
             body.kinetic_energy(),
             gap,
-            if body.is_finite() {
-                ""
-            } else {
-                "  DIVERGED (non-finite state)"
-            }
         );
+        let guard = &world.guards[b];
+        if guard.events > 0 {
+            println!(
+                "  {}: divergence guard acted {} times (last cause: {:?}) — the {} integrator is unstable here; \
+                 `palpa check` explains why",
+                body.name,
+                guard.events,
+                guard.last_cause.expect("an event has a cause"),
+                world.integrator_of(b).name()
+            );
+        }
     }
     if world.bodies.iter().any(|b| !b.is_finite()) {
         bail!("the simulation diverged; run `palpa check` on the scene for its stability margin");
@@ -571,9 +577,30 @@ fn check(path: Option<&Path>) -> Result<()> {
     println!("  systems: {}", world.systems().names().join(", "));
     println!("  stability under the paper's scheme (semi-implicit Euler), per body:");
     let mut unstable = false;
-    for (body, m) in world.bodies.iter().zip(world.stability_margins()) {
+    for (b, (body, m)) in world
+        .bodies
+        .iter()
+        .zip(world.stability_margins())
+        .enumerate()
+    {
         let ok = m.margin >= 0.0;
-        unstable |= !ok;
+        let integrator = world.integrator_of(b);
+        unstable |= !ok && integrator == palpa::dynamics::Integrator::Symplectic;
+        let (substeps, fast) = world.substeps_of(b);
+        println!(
+            "    {}: integrator {}{}",
+            body.name,
+            integrator.name(),
+            match integrator {
+                palpa::dynamics::Integrator::Multirate if fast > 0 =>
+                    format!(" — {fast} nodes sub-stepped ×{substeps}, the rest at dt"),
+                palpa::dynamics::Integrator::Multirate =>
+                    " — every node stable at dt, no sub-stepping".into(),
+                palpa::dynamics::Integrator::Implicit =>
+                    " — unconditionally stable (with numerical damping)".into(),
+                palpa::dynamics::Integrator::Symplectic => String::new(),
+            }
+        );
         println!(
             "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}); rigid links ω·Δt = {:.3} — {}",
             body.name,
@@ -587,7 +614,8 @@ fn check(path: Option<&Path>) -> Result<()> {
     }
     if unstable {
         println!(
-            "warning: a node is past the stability limit of the explicit scheme and this scene will diverge.\n\
+            "warning: a node is past the stability limit of the explicit scheme and this body uses it: the\n\
+             \x20 divergence guard will keep restoring it. Use integrator = \"multirate\" (the default) or \"implicit\".\n\
              \x20 ω² ≤ (k_link + 2 Σ k_edges) / m: more nodes for the same surface_mass means lighter nodes and\n\
              \x20 higher frequencies (the paper's trap). Lower dt, raise surface_mass, or lower surface_stiffness,\n\
              \x20 link_stiffness or the damping (which also tightens the limit: ω·Δt ≤ √(4 − 2 Δt c/m))."

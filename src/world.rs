@@ -14,10 +14,14 @@ use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
     capture_new_contacts, detect_face_contacts, hold_contact_nodes, push_out_of_tools,
 };
+use crate::dynamics::Integrator;
 use crate::dynamics::forces::accumulate_body_forces;
+use crate::dynamics::guard::{Guard, body_energy};
+use crate::dynamics::implicit::Implicit;
 use crate::dynamics::integrate::{
     commit_positions, integrate_free_nodes_symplectic, integrate_nodes_symplectic,
 };
+use crate::dynamics::multirate::Multirate;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
 use crate::scene::{Scene, WorldParams};
 use crate::tool::{Feedback, Tool};
@@ -90,6 +94,8 @@ pub struct StepCounters {
     pub tool_push_outs: u32,
     /// Body–body contact stage.
     pub bodies: BodyContactCounters,
+    /// Bodies the divergence guard restored this step.
+    pub guard_events: u32,
 }
 
 /// Everything simulated, and the step.
@@ -111,7 +117,21 @@ pub struct World {
     pub counters: StepCounters,
     systems: Systems,
     body_contact: Option<BodyContactScratch>,
+    solvers: Vec<BodySolver>,
+    /// The divergence guard of each body.
+    pub guards: Vec<Guard>,
 }
+
+/// The integrator of one body with its scratch memory.
+#[derive(Clone, Debug)]
+enum BodySolver {
+    Symplectic,
+    Multirate(Box<Multirate>),
+    Implicit(Box<Implicit>),
+}
+
+/// Ticks between energy checks of the divergence guard (the other checks run every tick).
+const ENERGY_CHECK_EVERY: u64 = 16;
 
 impl World {
     /// An empty world.
@@ -126,6 +146,8 @@ impl World {
             counters: StepCounters::default(),
             systems: Systems::default(),
             body_contact: None,
+            solvers: Vec::new(),
+            guards: Vec::new(),
         };
         world.assemble();
         world
@@ -189,6 +211,24 @@ impl World {
             .systems
             .body_contact
             .then(|| BodyContactScratch::new(&self.bodies));
+        let dt = self.params.dt;
+        self.solvers = self
+            .bodies
+            .iter()
+            .map(
+                |b| match b.params.integrator.unwrap_or(self.params.integrator) {
+                    Integrator::Symplectic => BodySolver::Symplectic,
+                    Integrator::Multirate => BodySolver::Multirate(Box::new(Multirate::new(b, dt))),
+                    Integrator::Implicit => BodySolver::Implicit(Box::new(Implicit::new(b))),
+                },
+            )
+            .collect();
+        let gravity = self.params.gravity;
+        self.guards = self
+            .bodies
+            .iter()
+            .map(|b| Guard::new(b, &gravity))
+            .collect();
     }
 
     /// The systems this world runs.
@@ -221,16 +261,23 @@ impl World {
             *reaction = Vec3::zeros();
         }
         let systems = self.systems;
-        for body in &mut self.bodies {
+        for (body, solver) in self.bodies.iter_mut().zip(self.solvers.iter_mut()) {
             accumulate_body_forces(body, &gravity);
             if systems.tool_contact {
                 hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
-                integrate_free_nodes_symplectic(&mut body.surface, dt);
+            }
+            match solver {
+                BodySolver::Symplectic if systems.tool_contact => {
+                    integrate_free_nodes_symplectic(&mut body.surface, dt)
+                }
+                BodySolver::Symplectic => integrate_nodes_symplectic(&mut body.surface, dt),
+                BodySolver::Multirate(m) => m.integrate(body, dt, &gravity),
+                BodySolver::Implicit(i) => i.integrate(body, dt),
+            }
+            if systems.tool_contact {
                 counters.tool_captures +=
                     capture_new_contacts(&mut body.surface, &mut self.tools, dt);
                 counters.tool_face_contacts += detect_face_contacts(&body.surface, &self.tools);
-            } else {
-                integrate_nodes_symplectic(&mut body.surface, dt);
             }
             if systems.obstacle_contact {
                 counters.obstacle_contacts += resolve_nodes_against_obstacles(
@@ -250,6 +297,26 @@ impl World {
         for body in &mut self.bodies {
             commit_positions(&mut body.surface);
             body.rigid.integrate(dt);
+        }
+        // Work the tools did on the tissue this tick (the tissue pushes the tool with the feedback).
+        let tool_work: f64 = self
+            .tools
+            .iter()
+            .map(|t| {
+                -t.feedback
+                    .force_in_world
+                    .dot(&(t.pose.position_in_world - t.previous_pose.position_in_world))
+            })
+            .filter(|w| w.is_finite())
+            .map(f64::abs)
+            .sum();
+        let check_energy = (self.tick + 1) % ENERGY_CHECK_EVERY == 0;
+        for (body, guard) in self.bodies.iter_mut().zip(self.guards.iter_mut()) {
+            guard.add_work(tool_work);
+            let energy = check_energy.then(|| body_energy(body, &gravity));
+            if guard.check(body, energy).is_some() {
+                counters.guard_events += 1;
+            }
         }
         for tool in &mut self.tools {
             clamp_feedback(tool);
@@ -284,6 +351,32 @@ impl World {
             }
         }
         Some(gap)
+    }
+
+    /// The integrator each body uses.
+    pub fn integrator_of(&self, body: usize) -> Integrator {
+        match self.solvers.get(body) {
+            Some(BodySolver::Multirate(_)) => Integrator::Multirate,
+            Some(BodySolver::Implicit(_)) => Integrator::Implicit,
+            _ => Integrator::Symplectic,
+        }
+    }
+
+    /// Substeps the multi-rate integrator takes for the fastest nodes of a body (1 otherwise), and
+    /// how many nodes it sub-steps.
+    pub fn substeps_of(&self, body: usize) -> (u32, usize) {
+        match self.solvers.get(body) {
+            Some(BodySolver::Multirate(m)) => (m.substeps, m.fast.len()),
+            _ => (1, 0),
+        }
+    }
+
+    /// Iterations and relative residual of the last implicit solve of a body.
+    pub fn implicit_solve_of(&self, body: usize) -> Option<(u32, f64)> {
+        match self.solvers.get(body) {
+            Some(BodySolver::Implicit(i)) => Some((i.last_iterations, i.last_residual)),
+            _ => None,
+        }
     }
 
     /// Stability margin of each body under the paper's scheme at this world's step.

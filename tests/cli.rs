@@ -54,7 +54,7 @@ fn check_warns_before_a_scene_diverges() {
     let scene = dir.join("stiff.toml");
     std::fs::write(
         &scene,
-        "[world]\ngravity = [0.0, 0.0, 0.0]\n[[body]]\nname = \"stiff\"\n\
+        "[world]\ngravity = [0.0, 0.0, 0.0]\nintegrator = \"symplectic\"\n[[body]]\nname = \"stiff\"\n\
          mesh = { icosphere = { radius = 0.05, subdivisions = 4 } }\nsurface_mass = 0.05\n\
          surface_stiffness = 400.0\nangular_velocity = [0.0, 0.0, 3.0]\n",
     )
@@ -73,9 +73,28 @@ fn check_warns_before_a_scene_diverges() {
         t.contains("systems: surface_springs, links, rigid_components\n"),
         "{t}"
     );
+    // The run goes on: the divergence guard catches the explicit scheme and says so.
     let out = palpa(&["run", path, "--duration", "1"]);
-    assert!(!out.status.success());
-    assert!(text(&out).contains("diverged"), "{}", text(&out));
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("divergence guard acted"),
+        "{}",
+        text(&out)
+    );
+    assert!(!text(&out).contains("NaN"), "{}", text(&out));
+    // The same body with the multi-rate integrator is stable.
+    std::fs::write(
+        &scene,
+        std::fs::read_to_string(&scene)
+            .unwrap()
+            .replace("symplectic", "multirate"),
+    )
+    .unwrap();
+    let out = palpa(&["check", path]);
+    assert!(text(&out).contains("nodes sub-stepped"), "{}", text(&out));
+    let out = palpa(&["run", path, "--duration", "1"]);
+    assert!(out.status.success());
+    assert!(!text(&out).contains("divergence guard"), "{}", text(&out));
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -24,10 +24,12 @@ fn single_node_world(dt: f64) -> World {
         fixed: true,
         ..BodyParams::default()
     };
+    // The reference scheme, explicitly: the integrator refactor must not change it.
     let mut world = World::new(WorldParams {
         gravity: Vec3::zeros(),
         dt,
         air_viscosity: 0.0,
+        integrator: palpa::dynamics::Integrator::Symplectic,
     });
     let mut body = Body::new("node", &mesh, &params, &Placement::default());
     body.surface.position_in_world[0] = Vec3::new(X0, 0.0, 0.0);

@@ -37,6 +37,8 @@ pub struct BodyParams {
     /// When true the rigid component is held where the scene puts it (an organ attached to the
     /// abdominal wall); the surface still deforms around it.
     pub fixed: bool,
+    /// This body's integrator, when it differs from the world's.
+    pub integrator: Option<crate::dynamics::Integrator>,
 }
 
 impl Default for BodyParams {
@@ -51,6 +53,7 @@ impl Default for BodyParams {
             air_viscosity: 0.0,
             friction: 0.3,
             fixed: false,
+            integrator: None,
         }
     }
 }

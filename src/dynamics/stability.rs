@@ -32,10 +32,9 @@ pub fn symplectic_limit(b: f64) -> f64 {
     }
 }
 
-/// Per-node bounds for the paper's scheme at step `dt`.
-pub fn symplectic_margin(body: &Body, dt: f64) -> StabilityMargin {
+/// Gershgorin sums of every node: (k_link + 2 Σ k_edges, c_link + 2 Σ c_edges + γ).
+pub fn node_bounds(body: &Body) -> (Vec<f64>, Vec<f64>) {
     let s = &body.surface;
-    let n = s.mass.len();
     let mut stiffness: Vec<f64> = s.link_stiffness.clone();
     let mut damping: Vec<f64> = s
         .link_damping
@@ -50,6 +49,21 @@ pub fn symplectic_margin(body: &Body, dt: f64) -> StabilityMargin {
             damping[node] += 2.0 * e.damping[k];
         }
     }
+    (stiffness, damping)
+}
+
+/// Whether a node with these Gershgorin sums and inverse mass is stable under semi-implicit Euler
+/// at step `h`, with a safety factor on the limit.
+pub fn stable_at(stiffness: f64, damping: f64, inverse_mass: f64, h: f64, safety: f64) -> bool {
+    let omega_h = (stiffness * inverse_mass).sqrt() * h;
+    omega_h <= safety * symplectic_limit(h * damping * inverse_mass)
+}
+
+/// Per-node bounds for the paper's scheme at step `dt`.
+pub fn symplectic_margin(body: &Body, dt: f64) -> StabilityMargin {
+    let s = &body.surface;
+    let n = s.mass.len();
+    let (stiffness, damping) = node_bounds(body);
     let mut worst = StabilityMargin {
         worst_node: 0,
         omega_dt: 0.0,

@@ -18,6 +18,7 @@ use toml::Spanned;
 use crate::Vec3;
 use crate::body::{BodyParams, Placement};
 use crate::collision::obstacle::{Obstacle, ObstacleShape};
+use crate::dynamics::Integrator;
 use crate::tool::{Keyframe, ToolInput, ToolPose, ToolShape};
 use mesh::SurfaceMesh;
 use schema::*;
@@ -34,6 +35,8 @@ pub struct WorldParams {
     pub dt: f64,
     /// Default air viscosity per unit mass of the bodies (1/s).
     pub air_viscosity: f64,
+    /// Default integrator of the bodies.
+    pub integrator: Integrator,
 }
 
 impl Default for WorldParams {
@@ -42,6 +45,7 @@ impl Default for WorldParams {
             gravity: Vec3::new(0.0, 0.0, -9.81),
             dt: 0.001,
             air_viscosity: 0.0,
+            integrator: Integrator::default(),
         }
     }
 }
@@ -155,6 +159,7 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
                 "air_viscosity",
                 Rule::NonNegative,
             )?,
+            integrator: ctx.integrator(w.integrator.as_ref(), world_defaults.integrator)?,
         },
     };
     if world.dt > 0.1 {
@@ -326,6 +331,23 @@ impl Ctx<'_> {
             ));
         }
         Ok(UnitQuaternion::from_quaternion(q))
+    }
+
+    fn integrator(
+        &self,
+        value: Option<&Spanned<String>>,
+        default: Integrator,
+    ) -> Result<Integrator, SceneError> {
+        let Some(v) = value else { return Ok(default) };
+        Integrator::from_name(v.get_ref()).ok_or_else(|| {
+            self.error(
+                v.span(),
+                format!(
+                    "`integrator` must be \"symplectic\", \"multirate\" or \"implicit\", found {:?}",
+                    v.get_ref()
+                ),
+            )
+        })
     }
 
     /// A name from the file, or the default; names appear in traces and service names, so they are
@@ -539,6 +561,10 @@ impl Ctx<'_> {
                 Rule::NonNegative,
             )?,
             fixed: b.fixed.unwrap_or(d.fixed),
+            integrator: match &b.integrator {
+                None => None,
+                Some(v) => Some(self.integrator(Some(v), world.integrator)?),
+            },
         };
         let placement = Placement {
             position_in_world: self.vector(b.position.as_ref(), Vec3::zeros(), "position")?,

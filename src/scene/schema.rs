@@ -22,6 +22,7 @@ pub(super) struct WorldSection {
     pub gravity: Option<Spanned<[f64; 3]>>,
     pub dt: Option<Spanned<f64>>,
     pub air_viscosity: Option<Spanned<f64>>,
+    pub integrator: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -42,6 +43,7 @@ pub(super) struct BodySection {
     pub air_viscosity: Option<Spanned<f64>>,
     pub friction: Option<Spanned<f64>>,
     pub fixed: Option<bool>,
+    pub integrator: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]

@@ -1,0 +1,155 @@
+//! The divergence guard: after every step, a body whose state is not finite, moves faster than tissue
+//! can, is torn further from its rigid component than any deformation explains, or holds more energy
+//! than it started with plus the work the tools did on it, is restored to its rigid component's shape
+//! — every node snapped to its homologue, its velocity to the rigid motion (the rigid component itself
+//! restored to its last good state if it went bad too). The event is counted with its cause and the
+//! step goes on: a NaN never leaves the step.
+
+use crate::Vec3;
+use crate::body::{Body, RigidComponent};
+
+/// Why the guard acted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GuardCause {
+    /// A position or velocity became NaN or infinite.
+    NonFinite,
+    /// A node moved faster than [`MAX_SPEED`].
+    Speed,
+    /// A node went further from its homologue than the body's size times [`MAX_STRETCH`].
+    Stretch,
+    /// The energy grew past what gravity and the tools can explain.
+    Energy,
+}
+
+/// Fastest a node may move (m/s): far beyond any surgical gesture or fall in a training rig.
+pub const MAX_SPEED: f64 = 100.0;
+/// Largest node–homologue distance, in body sizes.
+pub const MAX_STRETCH: f64 = 5.0;
+/// Energy slack allowed above the budget: this fraction of the budget plus [`ENERGY_SLACK_J`].
+pub const ENERGY_SLACK: f64 = 0.5;
+/// Absolute energy slack (J).
+pub const ENERGY_SLACK_J: f64 = 0.05;
+
+/// Per-body guard state.
+#[derive(Clone, Debug)]
+pub struct Guard {
+    /// Times the guard acted.
+    pub events: u64,
+    /// Cause of the last event.
+    pub last_cause: Option<GuardCause>,
+    /// The guard acted during the last step.
+    pub acted: bool,
+    size: f64,
+    budget: f64,
+    last_good_rigid: RigidComponent,
+}
+
+/// Total mechanical energy of a body: kinetic, elastic (edges and links) and gravitational (J).
+pub fn body_energy(body: &Body, gravity: &Vec3) -> f64 {
+    let s = &body.surface;
+    let r = &body.rigid;
+    let mut energy = body.kinetic_energy() - gravity.dot(&r.position_in_world) * r.mass;
+    let world_from_body = r.world_from_body.to_rotation_matrix();
+    for i in 0..s.mass.len() {
+        let h = r.position_in_world + world_from_body * s.homologue_in_body[i];
+        energy += 0.5 * s.link_stiffness[i] * (h - s.position_in_world[i]).norm_squared();
+        energy -= gravity.dot(&s.position_in_world[i]) * s.mass[i];
+    }
+    let e = &body.edges;
+    for k in 0..e.len() {
+        let length =
+            (s.position_in_world[e.b[k] as usize] - s.position_in_world[e.a[k] as usize]).norm();
+        energy += 0.5 * e.stiffness[k] * (length - e.rest_length[k]).powi(2);
+    }
+    energy
+}
+
+impl Guard {
+    /// A guard for `body` as it starts.
+    pub fn new(body: &Body, gravity: &Vec3) -> Self {
+        let mut lo = Vec3::repeat(f64::INFINITY);
+        let mut hi = Vec3::repeat(f64::NEG_INFINITY);
+        for p in &body.surface.homologue_in_body {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        Self {
+            events: 0,
+            last_cause: None,
+            acted: false,
+            size: (hi - lo).norm().max(1e-3),
+            budget: body_energy(body, gravity),
+            last_good_rigid: body.rigid.clone(),
+        }
+    }
+
+    /// Adds work done on the body by tools or anything outside the model (J).
+    pub fn add_work(&mut self, work: f64) {
+        if work.is_finite() {
+            self.budget += work;
+        }
+    }
+
+    /// Checks the body after a step and restores it if needed. `energy` is its energy now (only
+    /// computed by the caller when energy checks are on; `None` skips them).
+    pub fn check(&mut self, body: &mut Body, energy: Option<f64>) -> Option<GuardCause> {
+        self.acted = false;
+        let cause = self.diagnose(body, energy);
+        match cause {
+            None => {
+                self.last_good_rigid = body.rigid.clone();
+                None
+            }
+            Some(cause) => {
+                self.restore(body);
+                self.events += 1;
+                self.last_cause = Some(cause);
+                self.acted = true;
+                Some(cause)
+            }
+        }
+    }
+
+    fn diagnose(&self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
+        if !body.is_finite() {
+            return Some(GuardCause::NonFinite);
+        }
+        let s = &body.surface;
+        let max_stretch = MAX_STRETCH * self.size;
+        for i in 0..s.mass.len() {
+            if s.velocity_in_world[i].norm_squared() > MAX_SPEED * MAX_SPEED {
+                return Some(GuardCause::Speed);
+            }
+            if (s.position_in_world[i] - s.homologue_in_world[i]).norm_squared()
+                > max_stretch * max_stretch
+            {
+                return Some(GuardCause::Stretch);
+            }
+        }
+        if let Some(e) = energy
+            && e > self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J
+        {
+            return Some(GuardCause::Energy);
+        }
+        None
+    }
+
+    fn restore(&mut self, body: &mut Body) {
+        if !body.rigid.is_finite() {
+            body.rigid = self.last_good_rigid.clone();
+        }
+        let r = &body.rigid;
+        let world_from_body = r.world_from_body.to_rotation_matrix();
+        let omega = r.angular_velocity_in_world();
+        let s = &mut body.surface;
+        for i in 0..s.mass.len() {
+            let arm = world_from_body * s.homologue_in_body[i];
+            let h = r.position_in_world + arm;
+            s.position_in_world[i] = h;
+            s.next_position_in_world[i] = h;
+            s.homologue_in_world[i] = h;
+            s.velocity_in_world[i] = r.velocity_in_world + omega.cross(&arm);
+            s.force_in_world[i] = Vec3::zeros();
+        }
+    }
+}

@@ -1,0 +1,182 @@
+//! Multi-rate integration (paper §5, "pas de temps à différents grains"; MODEL.md §7): the rigid
+//! component and every node whose stability bound allows it keep the big step; the nodes that violate
+//! it (light nodes, stiff springs) are sub-stepped with the smallest power-of-two division that
+//! satisfies it.
+//!
+//! Fixed, deterministic exchange schedule: the slow nodes are integrated first over the whole step
+//! with the forces of its start; then the fast nodes are integrated together in substeps, each
+//! substep recomputing their forces from their own current states and from the slow neighbours'
+//! positions interpolated linearly between the start and the end of the step. The slow nodes feel the
+//! fast ones through the forces at the start of the step. With no fast node this is exactly the
+//! symplectic scheme.
+
+use crate::Vec3;
+use crate::body::Body;
+use crate::contact::tool::NO_TOOL;
+use crate::dynamics::stability::{node_bounds, stable_at};
+
+/// Largest number of halvings of the step.
+pub const MAX_LEVEL: u32 = 12;
+/// Fraction of the stability limit a node may use.
+pub const SAFETY: f64 = 0.9;
+
+/// Scratch and classification of one body.
+#[derive(Clone, Debug)]
+pub struct Multirate {
+    /// Fast nodes, in index order.
+    pub fast: Vec<u32>,
+    /// Substeps per step of the fast nodes (2^level of the fastest).
+    pub substeps: u32,
+    local: Vec<u32>,
+    start: Vec<u32>,
+    neighbour: Vec<u32>,
+    edge: Vec<u32>,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    f: Vec<Vec3>,
+}
+
+impl Multirate {
+    /// Classifies the nodes of `body` for step `dt` and sizes the scratch.
+    pub fn new(body: &Body, dt: f64) -> Self {
+        let s = &body.surface;
+        let n = s.mass.len();
+        let (stiffness, damping) = node_bounds(body);
+        let mut fast = Vec::new();
+        let mut level_max = 0;
+        for i in 0..n {
+            let mut level = 0;
+            while level < MAX_LEVEL
+                && !stable_at(
+                    stiffness[i],
+                    damping[i],
+                    s.inverse_mass[i],
+                    dt / (1u32 << level) as f64,
+                    SAFETY,
+                )
+            {
+                level += 1;
+            }
+            if level > 0 {
+                fast.push(i as u32);
+                level_max = level_max.max(level);
+            }
+        }
+        let mut local = vec![u32::MAX; n];
+        for (k, &i) in fast.iter().enumerate() {
+            local[i as usize] = k as u32;
+        }
+        // Incident edges of every node (CSR), in edge order.
+        let e = &body.edges;
+        let mut start = vec![0u32; n + 1];
+        for k in 0..e.len() {
+            start[e.a[k] as usize + 1] += 1;
+            start[e.b[k] as usize + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill: Vec<u32> = start.clone();
+        let mut neighbour = vec![0u32; 2 * e.len()];
+        let mut edge = vec![0u32; 2 * e.len()];
+        for k in 0..e.len() {
+            for (me, other) in [(e.a[k], e.b[k]), (e.b[k], e.a[k])] {
+                let at = fill[me as usize] as usize;
+                neighbour[at] = other;
+                edge[at] = k as u32;
+                fill[me as usize] += 1;
+            }
+        }
+        let m = fast.len();
+        Self {
+            fast,
+            substeps: 1 << level_max,
+            local,
+            start,
+            neighbour,
+            edge,
+            x: vec![Vec3::zeros(); m],
+            v: vec![Vec3::zeros(); m],
+            f: vec![Vec3::zeros(); m],
+        }
+    }
+
+    /// Integrates the free nodes of `body` over `dt` (forces already accumulated): slow nodes in one
+    /// step, fast nodes in substeps. Allocates nothing.
+    pub fn integrate(&mut self, body: &mut Body, dt: f64, gravity: &Vec3) {
+        let s = &mut body.surface;
+        let n = s.mass.len();
+        for i in 0..n {
+            if self.local[i] != u32::MAX || s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            let velocity = s.velocity_in_world[i] + s.force_in_world[i] * (dt * s.inverse_mass[i]);
+            s.velocity_in_world[i] = velocity;
+            s.next_position_in_world[i] = s.position_in_world[i] + velocity * dt;
+        }
+        if self.fast.is_empty() {
+            return;
+        }
+        let rigid = &body.rigid;
+        let omega = rigid.angular_velocity_in_world();
+        for (k, &i) in self.fast.iter().enumerate() {
+            self.x[k] = s.position_in_world[i as usize];
+            self.v[k] = s.velocity_in_world[i as usize];
+        }
+        let h = dt / self.substeps as f64;
+        let e = &body.edges;
+        for step in 0..self.substeps {
+            let fraction = step as f64 / self.substeps as f64;
+            for (k, &i) in self.fast.iter().enumerate() {
+                let i = i as usize;
+                if s.tool_contact[i].tool != NO_TOOL {
+                    continue;
+                }
+                let (x, v) = (self.x[k], self.v[k]);
+                let homologue = s.homologue_in_world[i];
+                let homologue_velocity =
+                    rigid.velocity_in_world + omega.cross(&(homologue - rigid.position_in_world));
+                let mut force = gravity * s.mass[i] - v * s.air_damping[i]
+                    + (homologue - x) * s.link_stiffness[i]
+                    + (homologue_velocity - v) * s.link_damping[i];
+                for at in self.start[i] as usize..self.start[i + 1] as usize {
+                    let j = self.neighbour[at] as usize;
+                    let edge = self.edge[at] as usize;
+                    let (xj, vj) = match self.local[j] {
+                        u32::MAX => {
+                            let (a, b) = (s.position_in_world[j], s.next_position_in_world[j]);
+                            (a + (b - a) * fraction, (b - a) / dt)
+                        }
+                        l => (self.x[l as usize], self.v[l as usize]),
+                    };
+                    let d = xj - x;
+                    let length = d.norm();
+                    if length <= f64::MIN_POSITIVE {
+                        continue;
+                    }
+                    let inverse_length = 1.0 / length;
+                    let magnitude = e.stiffness[edge] * (length - e.rest_length[edge])
+                        + e.damping[edge] * (vj - v).dot(&d) * inverse_length;
+                    force += d * (magnitude * inverse_length);
+                }
+                self.f[k] = force;
+            }
+            for (k, &i) in self.fast.iter().enumerate() {
+                let i = i as usize;
+                if s.tool_contact[i].tool != NO_TOOL {
+                    continue;
+                }
+                self.v[k] += self.f[k] * (h * s.inverse_mass[i]);
+                self.x[k] += self.v[k] * h;
+            }
+        }
+        for (k, &i) in self.fast.iter().enumerate() {
+            let i = i as usize;
+            if s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            s.velocity_in_world[i] = self.v[k];
+            s.next_position_in_world[i] = self.x[k];
+        }
+    }
+}
