@@ -121,11 +121,11 @@ impl Implicit {
         }
         let mut kv = std::mem::take(&mut self.ap);
         self.apply_edges(body, &body.surface.velocity_in_world, &mut kv, 1.0, 0.0);
-        for i in 0..n {
-            self.rhs[i] = if held(body, i) {
+        for (i, (rhs, kv_i)) in self.rhs.iter_mut().zip(&kv).enumerate() {
+            *rhs = if held(body, i) {
                 Vec3::zeros()
             } else {
-                (body.surface.force_in_world[i] - kv[i] * h) * h
+                (body.surface.force_in_world[i] - kv_i * h) * h
             };
         }
         self.ap = kv;
