@@ -316,6 +316,19 @@ impl World {
             let energy = check_energy.then(|| body_energy(body, &gravity));
             if guard.check(body, energy).is_some() {
                 counters.guard_events += 1;
+                // The restored shape may cross an obstacle the deformed one was resting on.
+                for x in &mut body.surface.position_in_world {
+                    for o in &self.obstacles {
+                        if o.shape.signed_distance(x) < 0.0
+                            && let Some(plane) = o.shape.contact_plane(x, x)
+                        {
+                            let depth = plane.signed_distance(x);
+                            if depth < 0.0 {
+                                *x -= plane.normal_in_world * depth;
+                            }
+                        }
+                    }
+                }
             }
         }
         for tool in &mut self.tools {

@@ -34,6 +34,7 @@ pub struct Multirate {
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     f: Vec<Vec3>,
+    homologue_end: Vec<Vec3>,
 }
 
 impl Multirate {
@@ -98,6 +99,7 @@ impl Multirate {
             x: vec![Vec3::zeros(); m],
             v: vec![Vec3::zeros(); m],
             f: vec![Vec3::zeros(); m],
+            homologue_end: vec![Vec3::zeros(); m],
         }
     }
 
@@ -117,11 +119,16 @@ impl Multirate {
         if self.fast.is_empty() {
             return;
         }
-        let rigid = &body.rigid;
-        let omega = rigid.angular_velocity_in_world();
+        // Where the rigid component will be at the end of the step (its forces are already known), so
+        // the fast nodes' homologues move with it through the substeps instead of waiting a step.
+        let mut rigid_end = body.rigid.clone();
+        rigid_end.integrate(dt);
+        let end_rotation = rigid_end.world_from_body.to_rotation_matrix();
         for (k, &i) in self.fast.iter().enumerate() {
             self.x[k] = s.position_in_world[i as usize];
             self.v[k] = s.velocity_in_world[i as usize];
+            self.homologue_end[k] =
+                rigid_end.position_in_world + end_rotation * s.homologue_in_body[i as usize];
         }
         let h = dt / self.substeps as f64;
         let e = &body.edges;
@@ -133,9 +140,9 @@ impl Multirate {
                     continue;
                 }
                 let (x, v) = (self.x[k], self.v[k]);
-                let homologue = s.homologue_in_world[i];
-                let homologue_velocity =
-                    rigid.velocity_in_world + omega.cross(&(homologue - rigid.position_in_world));
+                let (start, end) = (s.homologue_in_world[i], self.homologue_end[k]);
+                let homologue = start + (end - start) * fraction;
+                let homologue_velocity = (end - start) / dt;
                 let mut force = gravity * s.mass[i] - v * s.air_damping[i]
                     + (homologue - x) * s.link_stiffness[i]
                     + (homologue_velocity - v) * s.link_damping[i];

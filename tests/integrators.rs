@@ -1,0 +1,150 @@
+//! The integrators against references: multi-rate on light nodes against the reference scheme at a
+//! hundredth of the step, and the numerical damping of the implicit scheme against theory.
+
+mod common;
+
+use palpa::Vec3;
+use palpa::body::{Body, BodyParams, Placement};
+use palpa::dynamics::Integrator;
+use palpa::scene::mesh::SurfaceMesh;
+use palpa::scene::{WorldParams, parse_scene};
+use palpa::world::World;
+
+fn light_nodes(integrator: Integrator, dt: f64) -> World {
+    let path = common::repo_root().join("scenes/stress/light_nodes.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replacen(
+        "[world]",
+        &format!("[world]\nintegrator = \"{}\"\ndt = {dt}", integrator.name()),
+        1,
+    );
+    World::from_scene(&parse_scene(&text, "light_nodes.toml", path.parent().unwrap()).unwrap())
+}
+
+#[test]
+fn multirate_on_light_nodes_is_stable_and_close_to_the_fine_reference() {
+    let seconds = 0.3;
+    let mut coarse = light_nodes(Integrator::Multirate, 0.001);
+    let (substeps, fast) = coarse.substeps_of(0);
+    assert!(fast >= 1 && substeps >= 2, "the light node is sub-stepped");
+    let mut explicit = light_nodes(Integrator::Symplectic, 0.001);
+    let mut fine = light_nodes(Integrator::Symplectic, 0.00001);
+    assert!(
+        fine.stability_margins()[0].margin > 0.0,
+        "the reference is stable at 0.01 ms"
+    );
+    for _ in 0..(seconds / 0.001_f64).round() as usize {
+        coarse.step();
+        explicit.step();
+    }
+    for _ in 0..(seconds / 0.00001_f64).round() as usize {
+        fine.step();
+    }
+    assert_eq!(coarse.guards[0].events, 0, "multirate needs no guard");
+    assert!(
+        explicit.guards[0].events > 0,
+        "the reference scheme at 1 ms diverges (and is guarded)"
+    );
+    let (a, b) = (&coarse.bodies[0].surface, &fine.bodies[0].surface);
+    let worst = a
+        .position_in_world
+        .iter()
+        .zip(&b.position_in_world)
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max);
+    let com = (coarse.bodies[0].surface_centre_of_mass() - fine.bodies[0].surface_centre_of_mass())
+        .norm();
+    eprintln!(
+        "multirate at 1 ms vs symplectic at 0.01 ms after {seconds} s: worst node {worst:e} m, centre of mass {com:e} m"
+    );
+    assert!(worst < 1e-3, "worst node {worst} m from the fine reference");
+}
+
+#[test]
+fn implicit_is_stable_on_a_stiff_node_and_damps_as_backward_euler_predicts() {
+    // One node on a stiff link (100× the default link), no damping: ω Δt = 4.47 at 1 ms.
+    let (k, m, dt) = (2000.0, 1e-4, 0.001);
+    let mesh = SurfaceMesh {
+        positions_in_body: vec![Vec3::zeros()],
+        triangles: vec![],
+    };
+    let params = BodyParams {
+        surface_mass: m,
+        link_stiffness: k,
+        link_damping: 0.0,
+        fixed: true,
+        ..BodyParams::default()
+    };
+    let mut world = World::new(WorldParams {
+        gravity: Vec3::zeros(),
+        dt,
+        air_viscosity: 0.0,
+        integrator: Integrator::Implicit,
+    });
+    let mut body = Body::new("node", &mesh, &params, &Placement::default());
+    body.surface.position_in_world[0] = Vec3::new(0.001, 0.0, 0.0);
+    world.add_body(body);
+    let omega_dt = (k / m).sqrt() * dt;
+    assert!(omega_dt > 2.0, "past the explicit limit: {omega_dt}");
+    // Backward Euler multiplies the amplitude by 1/|1 + iωΔt| per step (linear, undamped system).
+    let per_step = 1.0 / (1.0 + omega_dt * omega_dt).sqrt();
+    let energy = |w: &World| {
+        let s = &w.bodies[0].surface;
+        0.5 * k * s.position_in_world[0].norm_squared()
+            + 0.5 * m * s.velocity_in_world[0].norm_squared()
+    };
+    let e0 = energy(&world);
+    let steps = 3;
+    for _ in 0..steps {
+        world.step();
+        assert!(world.bodies[0].is_finite());
+    }
+    // Energy ∝ amplitude²: the measured decay against the predicted one.
+    let measured = (energy(&world) / e0).sqrt();
+    let predicted = per_step.powi(steps);
+    eprintln!(
+        "implicit at ω Δt = {omega_dt:.2}: amplitude × {measured:.4e} after {steps} steps (predicted {predicted:.4e}); \
+         per step {:.4}, i.e. {:.1} % of the amplitude lost per step where the exact motion loses none",
+        measured.powf(1.0 / steps as f64),
+        (1.0 - measured.powf(1.0 / steps as f64)) * 100.0
+    );
+    assert!(
+        (measured / predicted - 1.0).abs() < 0.05,
+        "measured {measured}, predicted {predicted}"
+    );
+    let (iterations, residual) = world.implicit_solve_of(0).unwrap();
+    assert!(
+        residual <= 1e-8 && iterations >= 1,
+        "solve: {iterations} iterations, residual {residual}"
+    );
+}
+
+#[test]
+fn implicit_damping_of_a_stiff_body_free_vibration_is_measured() {
+    // The stiff stress body, floating, with its surface pushed 1 mm off its rigid component and no
+    // physical damping: the exact motion keeps its vibration energy; backward Euler removes some.
+    let path = common::repo_root().join("scenes/stress/stiff.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replacen("[world]", "[world]\nintegrator = \"implicit\"", 1)
+        .replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")
+        .replace("surface_damping = 0.01", "surface_damping = 0.0")
+        .replace("link_damping = 0.05", "link_damping = 0.0");
+    let mut world =
+        World::from_scene(&parse_scene(&text, "stiff.toml", path.parent().unwrap()).unwrap());
+    world.obstacles.clear();
+    for x in &mut world.bodies[0].surface.position_in_world {
+        x.z += 0.001;
+    }
+    let gravity = Vec3::zeros();
+    let vibration = |w: &World| palpa::dynamics::guard::body_energy(&w.bodies[0], &gravity);
+    let e0 = vibration(&world);
+    for _ in 0..20 {
+        world.step();
+    }
+    let ratio = (vibration(&world) / e0).sqrt();
+    eprintln!(
+        "stiff body, implicit at 1 ms: vibration amplitude × {ratio:.3e} after 20 ms (undamped exact: × 1)"
+    );
+    assert!(world.guards[0].events == 0 && world.bodies[0].is_finite());
+    assert!(ratio < 1.0, "backward Euler dissipates");
+}
