@@ -80,7 +80,10 @@ typedef struct {
     uint32_t tools_connected;       /* bit i: tool i (scene order) has a fresh pose */
     uint32_t paused;                /* 1 while paused */
     uint32_t dropped_records;       /* total: records the recorder dropped (0 when not recording) */
-} palpa_stats_v1;                   /* 104 bytes */
+    double   stability_margin;      /* smallest over bodies: explicit-scheme omega*dt limit minus the
+                                       worst node's omega*dt (negative: multirate/implicit needed) */
+    uint64_t guard_events;          /* total: times the divergence guard restored a body */
+} palpa_stats_v1;                   /* 120 bytes */
 
 /* Control commands. */
 #define PALPA_CONTROL_RESET     1u  /* rebuild the world from the scene, tick 0 */

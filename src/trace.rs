@@ -7,7 +7,7 @@ use std::io::Write;
 use crate::world::World;
 
 /// The trace header.
-pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration";
+pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration,integrator,substeps,worst_omega_dt,stability_margin,guard_events";
 
 /// Writes the header line.
 pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
@@ -48,8 +48,10 @@ pub fn write_feedback_rows(out: &mut impl Write, world: &World) -> std::io::Resu
 
 /// Writes one row per body for the world's current tick. `min_obstacle_gap` is empty without obstacles.
 pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<()> {
-    for body in &world.bodies {
+    let margins = world.stability_margins();
+    for (b, body) in world.bodies.iter().enumerate() {
         let com = body.surface_centre_of_mass();
+        let margin = &margins[b];
         let v = body.surface_centre_of_mass_velocity();
         let r = &body.rigid;
         let q = r.world_from_body.quaternion();
@@ -58,7 +60,7 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             .map_or(String::new(), |g| g.to_string());
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             world.tick,
             world.time(),
             body.name,
@@ -80,7 +82,12 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             body.node_count(),
             body.surface.triangles.len(),
             gap,
-            world.max_penetration(body)
+            world.max_penetration(body),
+            world.integrator_of(b).name(),
+            world.substeps_of(b).0,
+            margin.omega_dt,
+            margin.margin,
+            world.guards[b].events
         )?;
     }
     Ok(())

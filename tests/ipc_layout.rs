@@ -57,6 +57,8 @@ const TYPES: &[(&str, &[&str])] = &[
             "tools_connected",
             "paused",
             "dropped_records",
+            "stability_margin",
+            "guard_events",
         ],
     ),
     (
@@ -154,7 +156,9 @@ fn rust_payloads_match_the_c_header() {
             active_systems,
             tools_connected,
             paused,
-            dropped_records
+            dropped_records,
+            stability_margin,
+            guard_events
         ]
     );
     rust_layout!(
@@ -191,7 +195,7 @@ fn rust_payloads_match_the_c_header() {
     // The sizes the contract states.
     assert_eq!(size_of::<ToolPoseV1>(), 88);
     assert_eq!(size_of::<ToolFeedbackV1>(), 80);
-    assert_eq!(size_of::<StatsV1>(), 104);
+    assert_eq!(size_of::<StatsV1>(), 120);
     assert_eq!(size_of::<MeshHeaderV1>(), 40);
     assert_eq!(TOOL_POSE_TYPE_NAME, "palpa_tool_pose_v1");
     assert_eq!(TOOL_FEEDBACK_TYPE_NAME, "palpa_tool_feedback_v1");

@@ -193,6 +193,12 @@ pub fn serve(
     let max_ticks = options.duration.map(|d| (d / dt).round() as u64);
     let period = Duration::from_secs_f64(dt);
     let period_us = dt * 1e6;
+    // The bound depends on masses and stiffnesses only: computed once (again after a reset).
+    let mut stability_margin = world
+        .stability_margins()
+        .iter()
+        .map(|m| m.margin)
+        .fold(f64::INFINITY, f64::min);
     let mut stats = LoopStats::default();
     let mut whole_run = LoopStats::default();
     let mut stats_out = StatsV1::default();
@@ -255,6 +261,11 @@ pub fn serve(
                     sink.event(world.tick, event::RESET, None);
                     world = World::from_scene(scene);
                     meshes.reset(&world);
+                    stability_margin = world
+                        .stability_margins()
+                        .iter()
+                        .map(|m| m.margin)
+                        .fold(f64::INFINITY, f64::min);
                     for input in &mut inputs {
                         *input = ToolInputState::default();
                     }
@@ -359,6 +370,8 @@ pub fn serve(
                 .fold(0u32, |bits, (&t, _)| bits | (1u32 << t.min(31)));
             stats_out.paused = paused as u32;
             stats_out.dropped_records = sink.dropped().min(u32::MAX as u64) as u32;
+            stats_out.stability_margin = stability_margin;
+            stats_out.guard_events = world.guards.iter().map(|g| g.events).sum();
             stats_publisher.send_copy(stats_out)?;
             sink.stats(&stats_out);
         }

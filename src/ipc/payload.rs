@@ -88,7 +88,7 @@ pub const SYSTEM_TOOL_CONTACT: u32 = 1 << 5;
 /// Active-system bit: body–body contact.
 pub const SYSTEM_BODY_CONTACT: u32 = 1 << 6;
 
-/// Loop statistics over a one-second window (`palpa_stats_v1`, 104 bytes).
+/// Loop statistics over a one-second window (`palpa_stats_v1`, 120 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_stats_v1"))]
@@ -123,6 +123,11 @@ pub struct StatsV1 {
     pub paused: u32,
     /// Total records the recorder had to drop (queue full); 0 when not recording.
     pub dropped_records: u32,
+    /// Smallest stability margin of any body under the paper's scheme at dt (ω·Δt limit minus the
+    /// worst node's ω·Δt; negative: that body needs its multi-rate or implicit integrator).
+    pub stability_margin: f64,
+    /// Total times the divergence guard restored a body.
+    pub guard_events: u64,
 }
 
 /// Control command: rebuild the world from the scene, back to tick 0.

@@ -463,6 +463,8 @@ pub fn stats_message(s: &StatsV1, dropped: u64) -> proto::Stats {
         tools_connected: s.tools_connected,
         paused: s.paused != 0,
         dropped_records: dropped,
+        stability_margin: s.stability_margin,
+        guard_events: s.guard_events,
     }
 }
 
