@@ -57,3 +57,28 @@ fn two_cli_runs_give_byte_identical_trace_files() {
     assert!(text.starts_with(palpa::trace::TRACE_HEADER));
     assert!(traces[0] == traces[1], "the two runs' traces differ");
 }
+
+#[test]
+fn every_integrator_is_deterministic() {
+    let path = common::repo_root().join("scenes/stress/light_nodes.toml");
+    for integrator in ["symplectic", "multirate", "implicit"] {
+        let text = std::fs::read_to_string(&path).unwrap().replacen(
+            "[world]",
+            &format!("[world]\nintegrator = \"{integrator}\""),
+            1,
+        );
+        let run = || {
+            let scene =
+                palpa::scene::parse_scene(&text, "light_nodes.toml", path.parent().unwrap())
+                    .unwrap();
+            let mut world = World::from_scene(&scene);
+            let mut out = Vec::new();
+            for _ in 0..500 {
+                world.step();
+                write_trace_rows(&mut out, &world).unwrap();
+            }
+            out
+        };
+        assert!(run() == run(), "{integrator}: traces differ");
+    }
+}
