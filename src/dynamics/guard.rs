@@ -25,6 +25,9 @@ pub enum GuardCause {
 pub const MAX_SPEED: f64 = 100.0;
 /// Largest node–homologue distance, in body sizes.
 pub const MAX_STRETCH: f64 = 5.0;
+/// Smallest body size the stretch check assumes (m): a body of a few nodes (or one) has no extent
+/// of its own to measure stretch against.
+pub const MIN_SIZE: f64 = 0.1;
 /// Energy slack allowed above the budget: this fraction of the budget plus [`ENERGY_SLACK_J`].
 pub const ENERGY_SLACK: f64 = 0.5;
 /// Absolute energy slack (J).
@@ -77,7 +80,7 @@ impl Guard {
             events: 0,
             last_cause: None,
             acted: false,
-            size: (hi - lo).norm().max(1e-3),
+            size: (hi - lo).norm().max(MIN_SIZE),
             budget: body_energy(body, gravity),
             last_good_rigid: body.rigid.clone(),
         }
