@@ -14,6 +14,7 @@
 //! - [`collision`]: obstacle geometry, continuous detection against tools.
 //! - [`contact`]: node–obstacle and node–tool contact with Coulomb friction; force feedback.
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
+//! - [`topology`]: adaptive subdivision with the paper's mass rule, and coarsening.
 //! - [`trace`]: the CSV trace of a run.
 //! - [`daemon`]: input hygiene and loop statistics of the 1 kHz daemon.
 //! - [`device`]: the simulated haptic device (model and loop).
@@ -46,6 +47,7 @@ pub mod ipc;
 pub mod record;
 pub mod scene;
 pub mod tool;
+pub mod topology;
 pub mod trace;
 pub mod world;
 
