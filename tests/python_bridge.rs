@@ -5,39 +5,15 @@
 //! creates). Without one that can import `iceoryx2` the test prints SKIPPED, unless
 //! `PALPA_REQUIRE_PYTHON=1` (set by `.ci/run`), where that is a failure.
 
-use std::path::PathBuf;
-use std::process::{Command, Stdio};
+mod common;
 
-fn python() -> Option<PathBuf> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let candidate = std::env::var_os("PALPA_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join(".venv/bin/python"));
-    let works = Command::new(&candidate)
-        .args(["-c", "import iceoryx2"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if works {
-        return Some(candidate);
-    }
-    if std::env::var("PALPA_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-        panic!(
-            "PALPA_REQUIRE_PYTHON=1 but {} cannot import iceoryx2",
-            candidate.display()
-        );
-    }
-    eprintln!(
-        "SKIPPED: no Python with the iceoryx2 package ({})",
-        candidate.display()
-    );
-    None
-}
+use std::process::{Command, Stdio};
 
 #[test]
 fn python_bridge_presses_through_the_daemon() {
-    let Some(python) = python() else { return };
+    let Some(python) = common::python_with("iceoryx2") else {
+        return;
+    };
     let prefix = format!("py{}", std::process::id());
     let mut daemon = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args(["serve", "--lockstep", "--prefix", &prefix])

@@ -2,6 +2,8 @@
 //! an altered input is caught at its tick, replay is deterministic, an independent Python reader
 //! decodes every message, and a daemon killed while recording leaves a readable file.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -115,37 +117,11 @@ fn replaying_twice_gives_identical_output() {
     std::fs::remove_file(path).ok();
 }
 
-/// The Python interpreter with the `mcap` packages, or `None` (skip) unless required.
-fn python() -> Option<PathBuf> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let candidate = std::env::var_os("PALPA_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join(".venv/bin/python"));
-    let works = Command::new(&candidate)
-        .args(["-c", "import mcap, mcap_protobuf"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if works {
-        return Some(candidate);
-    }
-    if std::env::var("PALPA_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-        panic!(
-            "PALPA_REQUIRE_PYTHON=1 but {} cannot import mcap and mcap_protobuf",
-            candidate.display()
-        );
-    }
-    eprintln!(
-        "SKIPPED: no Python with the mcap packages ({})",
-        candidate.display()
-    );
-    None
-}
-
 #[test]
 fn an_independent_python_reader_decodes_every_message() {
-    let Some(python) = python() else { return };
+    let Some(python) = common::python_with("mcap, mcap_protobuf") else {
+        return;
+    };
     let path = record_session("python.mcap");
     let out = Command::new(python)
         .arg(concat!(

@@ -129,18 +129,6 @@ fn active_system_bits(world: &World) -> u32 {
     bits
 }
 
-fn monotonic_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the valid timespec we pass.
-    unsafe {
-        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
-    }
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
-}
-
 /// Runs the daemon on the calling thread until `stop` is set or the duration is reached.
 pub fn serve(
     scene: &Scene,

@@ -14,7 +14,7 @@ use iceoryx2::port::update_connections::UpdateConnections;
 use super::model::{Device, DeviceSpec, Hand};
 use crate::Vec3;
 use crate::ipc::payload::{ToolFeedbackV1, ToolPoseV1};
-use crate::ipc::services::{IpcError, create_node, feedback_service, pose_service};
+use crate::ipc::services::{IpcError, create_node, feedback_service, monotonic_ns, pose_service};
 use crate::tool::{Keyframe, ToolInput};
 
 /// A built-in motion of the hand.
@@ -191,18 +191,6 @@ pub fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
             at + Vec3::new(x, y, z)
         }
     }
-}
-
-fn monotonic_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes into the valid timespec we pass.
-    unsafe {
-        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
-    }
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
 /// What the device measured about the answers.

@@ -13,6 +13,19 @@ use crate::ipc::payload::{
 /// Any iceoryx2 error, boxed: services are set up once, errors are reported where handled.
 pub type IpcError = Box<dyn core::error::Error>;
 
+/// CLOCK_MONOTONIC in nanoseconds: the clock of `device_time_ns` and of receive times.
+pub fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the valid timespec we pass.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
 /// Name of a tool's pose service.
 pub fn pose_service_name(prefix: &str, tool: &str) -> String {
     format!("{prefix}/tool/{tool}/pose")

@@ -39,3 +39,33 @@ pub fn scene(text: &str) -> Scene {
 pub fn scene_in(text: &str, dir: &Path) -> Scene {
     parse_scene(text, "test.toml", dir).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// A Python interpreter that can import `modules` (`$PALPA_PYTHON`, else `.venv/bin/python` in the
+/// repository, as `.ci/run` creates it), or `None` with a SKIPPED message — unless
+/// `PALPA_REQUIRE_PYTHON=1`, where its absence fails the test.
+pub fn python_with(modules: &str) -> Option<PathBuf> {
+    use std::process::{Command, Stdio};
+    let candidate = std::env::var_os("PALPA_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join(".venv/bin/python"));
+    let works = Command::new(&candidate)
+        .args(["-c", &format!("import {modules}")])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if works {
+        return Some(candidate);
+    }
+    if std::env::var("PALPA_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
+        panic!(
+            "PALPA_REQUIRE_PYTHON=1 but {} cannot import {modules}",
+            candidate.display()
+        );
+    }
+    eprintln!(
+        "SKIPPED: no Python that can import {modules} ({})",
+        candidate.display()
+    );
+    None
+}
