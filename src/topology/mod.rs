@@ -32,12 +32,12 @@ pub const POOL_NODES: usize = 256;
 pub enum SpringRule {
     /// The paper's first rule: the mean of the two triangle edges meeting at the corner, weighted by
     /// how close each one's direction is to the new edge's.
+    #[default]
     Angle,
     /// The paper's second rule: keep k·L0 of the triangle's edges (mean), so shorter edges are stiffer.
     ConstantKl,
-    /// Ours: k·L0² per unit area is kept, so the refined patch keeps the triangle's membrane stiffness
-    /// (a spring network's in-plane modulus scales as Σ k L² / area).
-    #[default]
+    /// Ours, meant to keep the triangle's membrane stiffness (a spring network's in-plane modulus
+    /// scales as Σ k L² / area). Not validated: as written it makes very short new edges far too stiff.
     Area,
 }
 
