@@ -90,6 +90,35 @@ unsafe extern "C" {
     fn libc_kill(pid: i32, signal: i32) -> i32;
 }
 
+type Ipc = iceoryx2::prelude::ipc::Service;
+type Topic<T> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Ipc, T, ()>;
+
+fn publisher_of<T: std::fmt::Debug + iceoryx2::prelude::ZeroCopySend>(
+    factory: Result<Topic<T>, IpcError>,
+) -> iceoryx2::port::publisher::Publisher<Ipc, T, ()> {
+    factory.unwrap().publisher_builder().create().unwrap()
+}
+
+fn subscriber_of<T: std::fmt::Debug + iceoryx2::prelude::ZeroCopySend>(
+    factory: Result<Topic<T>, IpcError>,
+) -> iceoryx2::port::subscriber::Subscriber<Ipc, T, ()> {
+    factory.unwrap().subscriber_builder().create().unwrap()
+}
+
+type Control = iceoryx2::service::port_factory::request_response::PortFactory<
+    Ipc,
+    ControlRequestV1,
+    (),
+    ControlResponseV1,
+    (),
+>;
+
+fn client_of(
+    factory: Result<Control, IpcError>,
+) -> iceoryx2::port::client::Client<Ipc, ControlRequestV1, (), ControlResponseV1, ()> {
+    factory.unwrap().client_builder().create().unwrap()
+}
+
 /// Polls `f` every 0.2 ms until it returns Some, for at most `seconds`.
 fn wait_for<T>(seconds: f64, mut f: impl FnMut() -> Option<T>) -> Option<T> {
     let deadline = Instant::now() + Duration::from_secs_f64(seconds);
@@ -110,11 +139,7 @@ fn serve_and_device_press_for_3_s_in_lockstep() {
     // past 1 ms; without it the daemon falls back and says so.
     let daemon = serve(&["--prefix", &p, "--lockstep", "--rt"]);
     let node = create_node().unwrap();
-    let stats = stats_service(&node, &p)
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
+    let stats = subscriber_of(stats_service(&node, &p));
     let (report, trace) = (temp("press.json"), temp("press.csv"));
     let status = device(&[
         "--prefix",
@@ -185,21 +210,9 @@ fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
     let p = prefix("bad");
     let daemon = serve(&["--prefix", &p]);
     let node = create_node().unwrap();
-    let poses = pose_service(&node, &p, "probe")
-        .unwrap()
-        .publisher_builder()
-        .create()
-        .unwrap();
-    let feedback = feedback_service(&node, &p, "probe")
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
-    let stats = stats_service(&node, &p)
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
+    let poses = publisher_of(pose_service(&node, &p, "probe"));
+    let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
+    let stats = subscriber_of(stats_service(&node, &p));
     let newest = || {
         let mut last = None;
         while let Some(s) = feedback.receive().unwrap() {
@@ -258,11 +271,7 @@ fn a_killed_device_goes_stale_and_a_new_one_is_picked_up() {
     let p = prefix("kill");
     let daemon = serve(&["--prefix", &p, "--stale-after-ms", "100"]);
     let node = create_node().unwrap();
-    let feedback = feedback_service(&node, &p, "probe")
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
+    let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
     let newest = || {
         let mut last = None;
         while let Some(s) = feedback.receive().unwrap() {
@@ -313,21 +322,9 @@ fn a_display_joining_late_rebuilds_the_exact_mesh() {
     let p = prefix("display");
     let daemon = serve(&["--prefix", &p, "--lockstep", "--keyframe-every", "1000"]);
     let node = create_node().unwrap();
-    let poses = pose_service(&node, &p, "probe")
-        .unwrap()
-        .publisher_builder()
-        .create()
-        .unwrap();
-    let feedback = feedback_service(&node, &p, "probe")
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
-    let control = control_service(&node, &p)
-        .unwrap()
-        .client_builder()
-        .create()
-        .unwrap();
+    let poses = publisher_of(pose_service(&node, &p, "probe"));
+    let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
+    let control = client_of(control_service(&node, &p));
     // The probe goes down into the organ and comes back: the mesh moves.
     let pose_at = |k: u64| {
         let t = k as f64 * 0.001;
@@ -427,16 +424,8 @@ fn control_pauses_resumes_and_resets() {
     let p = prefix("control");
     let daemon = serve(&["--prefix", &p]);
     let node = create_node().unwrap();
-    let control = control_service(&node, &p)
-        .unwrap()
-        .client_builder()
-        .create()
-        .unwrap();
-    let stats = stats_service(&node, &p)
-        .unwrap()
-        .subscriber_builder()
-        .create()
-        .unwrap();
+    let control = client_of(control_service(&node, &p));
+    let stats = subscriber_of(stats_service(&node, &p));
     let ask = |command: u32| -> ControlResponseV1 {
         let pending = wait_for(10.0, || {
             let pending = control

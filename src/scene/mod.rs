@@ -178,40 +178,38 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
     let mut bodies: Vec<BodySpec> = Vec::with_capacity(file.body.len());
     for (index, body) in file.body.iter().enumerate() {
         let spec = ctx.body(body, index, &world, dir, &mut assets)?;
-        if bodies.iter().any(|b| b.name == spec.name) {
-            let span = body
-                .get_ref()
-                .name
-                .as_ref()
-                .map_or(body.span(), |n| n.span());
-            return Err(ctx.error(span, format!("duplicate body name `{}`", spec.name)));
-        }
+        ctx.unique(
+            bodies.iter().map(|b| &b.name),
+            &spec.name,
+            body,
+            &body.get_ref().name,
+            "body",
+        )?;
         bodies.push(spec);
     }
     let mut obstacles: Vec<Obstacle> = Vec::with_capacity(file.obstacle.len());
     for (index, obstacle) in file.obstacle.iter().enumerate() {
         let o = ctx.obstacle(obstacle, index)?;
-        if obstacles.iter().any(|b| b.name == o.name) {
-            let span = obstacle
-                .get_ref()
-                .name
-                .as_ref()
-                .map_or(obstacle.span(), |n| n.span());
-            return Err(ctx.error(span, format!("duplicate obstacle name `{}`", o.name)));
-        }
+        let given = &obstacle.get_ref().name;
+        ctx.unique(
+            obstacles.iter().map(|b| &b.name),
+            &o.name,
+            obstacle,
+            given,
+            "obstacle",
+        )?;
         obstacles.push(o);
     }
     let mut tools: Vec<ToolSpec> = Vec::with_capacity(file.tool.len());
     for (index, tool) in file.tool.iter().enumerate() {
         let t = ctx.tool(tool, index)?;
-        if tools.iter().any(|o| o.name == t.name) {
-            let span = tool
-                .get_ref()
-                .name
-                .as_ref()
-                .map_or(tool.span(), |n| n.span());
-            return Err(ctx.error(span, format!("duplicate tool name `{}`", t.name)));
-        }
+        ctx.unique(
+            tools.iter().map(|o| &o.name),
+            &t.name,
+            tool,
+            &tool.get_ref().name,
+            "tool",
+        )?;
         tools.push(t);
     }
     Ok(Scene {
@@ -348,6 +346,22 @@ impl Ctx<'_> {
                 ),
             )
         })
+    }
+
+    /// An error at the name (or the whole table) when `name` is already among `taken`.
+    fn unique<'n, T>(
+        &self,
+        mut taken: impl Iterator<Item = &'n String>,
+        name: &str,
+        table: &Spanned<T>,
+        given: &Option<Spanned<String>>,
+        kind: &str,
+    ) -> Result<(), SceneError> {
+        if taken.any(|n| n == name) {
+            let span = given.as_ref().map_or(table.span(), |n| n.span());
+            return Err(self.error(span, format!("duplicate {kind} name `{name}`")));
+        }
+        Ok(())
     }
 
     /// A name from the file, or the default; names appear in traces and service names, so they are
