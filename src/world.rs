@@ -25,6 +25,8 @@ use crate::dynamics::multirate::Multirate;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
 use crate::scene::{Scene, WorldParams};
 use crate::tool::{Feedback, Tool};
+use crate::topology::refine::Refinement;
+use crate::topology::{POOL_NODES, reserve_for_subdivision};
 
 /// Scales a tool's feedback force down to its `max_force`, flagging it.
 fn clamp_feedback(tool: &mut Tool) {
@@ -96,6 +98,10 @@ pub struct StepCounters {
     pub bodies: BodyContactCounters,
     /// Bodies the divergence guard restored this step.
     pub guard_events: u32,
+    /// Nodes inserted by adaptive subdivision this step.
+    pub refinements: u32,
+    /// Inserted nodes removed again this step.
+    pub coarsenings: u32,
 }
 
 /// Everything simulated, and the step.
@@ -120,6 +126,8 @@ pub struct World {
     solvers: Vec<BodySolver>,
     /// The divergence guard of each body.
     pub guards: Vec<Guard>,
+    /// Adaptive subdivision state of each body (`None` where the scene leaves it off).
+    pub refinements: Vec<Option<Refinement>>,
 }
 
 /// The integrator of one body with its scratch memory.
@@ -128,6 +136,33 @@ enum BodySolver {
     Symplectic,
     Multirate(Box<Multirate>),
     Implicit(Box<Implicit>),
+}
+
+/// The integrator of a body with scratch sized for it (and for its subdivision pool when on).
+fn solver_for(body: &Body, world_integrator: Integrator, dt: f64) -> BodySolver {
+    let room = if body.params.subdivision.is_some() {
+        POOL_NODES
+    } else {
+        0
+    };
+    match body.params.integrator.unwrap_or(world_integrator) {
+        Integrator::Symplectic => BodySolver::Symplectic,
+        Integrator::Multirate => {
+            BodySolver::Multirate(Box::new(Multirate::with_room(body, dt, room)))
+        }
+        Integrator::Implicit => BodySolver::Implicit(Box::new(Implicit::with_room(body, room))),
+    }
+}
+
+impl BodySolver {
+    /// Follows a change of the body's topology (allocation-free within the reserved room).
+    fn topology_changed(&mut self, body: &Body, dt: f64) {
+        match self {
+            BodySolver::Symplectic => {}
+            BodySolver::Multirate(m) => m.rebuild(body, dt),
+            BodySolver::Implicit(i) => i.resize(body),
+        }
+    }
 }
 
 /// Ticks between energy checks of the divergence guard (the other checks run every tick).
@@ -148,6 +183,7 @@ impl World {
             body_contact: None,
             solvers: Vec::new(),
             guards: Vec::new(),
+            refinements: Vec::new(),
         };
         world.assemble();
         world
@@ -212,16 +248,21 @@ impl World {
             .body_contact
             .then(|| BodyContactScratch::new(&self.bodies));
         let dt = self.params.dt;
+        let world_integrator = self.params.integrator;
+        self.refinements = self
+            .bodies
+            .iter_mut()
+            .map(|b| {
+                b.params.subdivision.map(|settings| {
+                    reserve_for_subdivision(b);
+                    Refinement::new(b, settings)
+                })
+            })
+            .collect();
         self.solvers = self
             .bodies
             .iter()
-            .map(
-                |b| match b.params.integrator.unwrap_or(self.params.integrator) {
-                    Integrator::Symplectic => BodySolver::Symplectic,
-                    Integrator::Multirate => BodySolver::Multirate(Box::new(Multirate::new(b, dt))),
-                    Integrator::Implicit => BodySolver::Implicit(Box::new(Implicit::new(b))),
-                },
-            )
+            .map(|b| solver_for(b, world_integrator, dt))
             .collect();
         let gravity = self.params.gravity;
         self.guards = self
@@ -261,7 +302,13 @@ impl World {
             *reaction = Vec3::zeros();
         }
         let systems = self.systems;
-        for (body, solver) in self.bodies.iter_mut().zip(self.solvers.iter_mut()) {
+        let mut topology_changed = false;
+        for ((body, solver), refinement) in self
+            .bodies
+            .iter_mut()
+            .zip(self.solvers.iter_mut())
+            .zip(self.refinements.iter_mut())
+        {
             accumulate_body_forces(body, &gravity);
             if systems.tool_contact {
                 hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
@@ -277,6 +324,14 @@ impl World {
             if systems.tool_contact {
                 counters.tool_captures +=
                     capture_new_contacts(&mut body.surface, &mut self.tools, dt);
+                if let Some(refinement) = refinement.as_mut() {
+                    let inserted = refinement.refine_at_tools(body, &self.tools, self.tick + 1, dt);
+                    if inserted > 0 {
+                        counters.refinements += inserted;
+                        solver.topology_changed(body, dt);
+                        topology_changed = true;
+                    }
+                }
                 counters.tool_face_contacts += detect_face_contacts(&body.surface, &self.tools);
             }
             if systems.obstacle_contact {
@@ -298,6 +353,22 @@ impl World {
             commit_positions(&mut body.surface);
             body.rigid.integrate(dt);
         }
+        // Coarsening, before the guard looks at the bodies.
+        for ((body, solver), refinement) in self
+            .bodies
+            .iter_mut()
+            .zip(self.solvers.iter_mut())
+            .zip(self.refinements.iter_mut())
+        {
+            if let Some(refinement) = refinement.as_mut() {
+                let removed = refinement.coarsen(body, self.tick + 1, dt);
+                if removed > 0 {
+                    counters.coarsenings += removed;
+                    solver.topology_changed(body, dt);
+                    topology_changed = true;
+                }
+            }
+        }
         // Work the tools did on the tissue this tick (the tissue pushes the tool with the feedback).
         let tool_work: f64 = self
             .tools
@@ -311,9 +382,22 @@ impl World {
             .map(f64::abs)
             .sum();
         let check_energy = (self.tick + 1) % ENERGY_CHECK_EVERY == 0;
-        for (body, guard) in self.bodies.iter_mut().zip(self.guards.iter_mut()) {
+        for ((body, guard), refinement) in self
+            .bodies
+            .iter_mut()
+            .zip(self.guards.iter_mut())
+            .zip(&self.refinements)
+        {
             guard.add_work(tool_work);
-            let energy = check_energy.then(|| body_energy(body, &gravity));
+            let refined_now = refinement
+                .as_ref()
+                .is_some_and(|r| r.changed_at == self.tick + 1);
+            let energy = (check_energy || refined_now).then(|| body_energy(body, &gravity));
+            if refined_now && let Some(e) = energy {
+                // An insertion and its capture by the tool add energy from outside the model, like
+                // the tool's work: the budget takes it.
+                guard.raise_budget_to(e);
+            }
             if guard.check(body, energy).is_some() {
                 counters.guard_events += 1;
                 // The restored shape may cross an obstacle the deformed one was resting on.
@@ -333,6 +417,11 @@ impl World {
         }
         for tool in &mut self.tools {
             clamp_feedback(tool);
+        }
+        if topology_changed && self.body_contact.is_some() {
+            // The bounding volume hierarchies follow the new triangles (this allocates; only
+            // scenes with two bodies or more have them).
+            self.body_contact = Some(BodyContactScratch::new(&self.bodies));
         }
         self.counters = counters;
         self.tick += 1;

@@ -39,6 +39,8 @@ pub struct BodyParams {
     pub fixed: bool,
     /// This body's integrator, when it differs from the world's.
     pub integrator: Option<crate::dynamics::Integrator>,
+    /// Adaptive subdivision at tool contact, when on.
+    pub subdivision: Option<crate::topology::SubdivisionSettings>,
 }
 
 impl Default for BodyParams {
@@ -54,6 +56,7 @@ impl Default for BodyParams {
             friction: 0.3,
             fixed: false,
             integrator: None,
+            subdivision: None,
         }
     }
 }

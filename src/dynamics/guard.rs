@@ -93,6 +93,14 @@ impl Guard {
         }
     }
 
+    /// Raises the energy budget to at least `energy` (J): after a change the guard must accept, such
+    /// as a topology change.
+    pub fn raise_budget_to(&mut self, energy: f64) {
+        if energy.is_finite() {
+            self.budget = self.budget.max(energy);
+        }
+    }
+
     /// Checks the body after a step and restores it if needed. `energy` is its energy now (only
     /// computed by the caller when energy checks are on; `None` skips them).
     pub fn check(&mut self, body: &mut Body, energy: Option<f64>) -> Option<GuardCause> {

@@ -42,22 +42,57 @@ pub struct Implicit {
 impl Implicit {
     /// Scratch for `body`.
     pub fn new(body: &Body) -> Self {
-        let n = body.node_count();
-        let m = body.edges.len();
-        Self {
-            u: vec![Vec3::zeros(); m],
-            tangent: vec![0.0; m],
-            axial: vec![0.0; m],
-            diagonal: vec![0.0; n],
-            preconditioner: vec![Vec3::zeros(); n],
-            rhs: vec![Vec3::zeros(); n],
-            dv: vec![Vec3::zeros(); n],
-            r: vec![Vec3::zeros(); n],
-            z: vec![Vec3::zeros(); n],
-            p: vec![Vec3::zeros(); n],
-            ap: vec![Vec3::zeros(); n],
+        Self::with_room(body, 0)
+    }
+
+    /// Scratch for `body` with room for `extra_nodes` more nodes (three edges each), so that
+    /// [`Implicit::resize`] after a subdivision allocates nothing.
+    pub fn with_room(body: &Body, extra_nodes: usize) -> Self {
+        let n = body.node_count() + extra_nodes;
+        let m = body.edges.len() + 3 * extra_nodes;
+        let mut implicit = Self {
+            u: Vec::with_capacity(m),
+            tangent: Vec::with_capacity(m),
+            axial: Vec::with_capacity(m),
+            diagonal: Vec::with_capacity(n),
+            preconditioner: Vec::with_capacity(n),
+            rhs: Vec::with_capacity(n),
+            dv: Vec::with_capacity(n),
+            r: Vec::with_capacity(n),
+            z: Vec::with_capacity(n),
+            p: Vec::with_capacity(n),
+            ap: Vec::with_capacity(n),
             last_iterations: 0,
             last_residual: 0.0,
+        };
+        implicit.resize(body);
+        implicit
+    }
+
+    /// Sizes the scratch to the body's nodes and edges (after a subdivision or a coarsening). The
+    /// warm start of the solver restarts from zero.
+    pub fn resize(&mut self, body: &Body) {
+        let n = body.node_count();
+        let m = body.edges.len();
+        self.u.clear();
+        self.u.resize(m, Vec3::zeros());
+        for buffer in [&mut self.tangent, &mut self.axial] {
+            buffer.clear();
+            buffer.resize(m, 0.0);
+        }
+        self.diagonal.clear();
+        self.diagonal.resize(n, 0.0);
+        for buffer in [
+            &mut self.preconditioner,
+            &mut self.rhs,
+            &mut self.dv,
+            &mut self.r,
+            &mut self.z,
+            &mut self.p,
+            &mut self.ap,
+        ] {
+            buffer.clear();
+            buffer.resize(n, Vec3::zeros());
         }
     }
 

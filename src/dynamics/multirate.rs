@@ -13,7 +13,7 @@
 use crate::Vec3;
 use crate::body::Body;
 use crate::contact::tool::NO_TOOL;
-use crate::dynamics::stability::{node_bounds, stable_at};
+use crate::dynamics::stability::{node_bounds_into, stable_at};
 
 /// Largest number of halvings of the step.
 pub const MAX_LEVEL: u32 = 12;
@@ -35,22 +35,53 @@ pub struct Multirate {
     v: Vec<Vec3>,
     f: Vec<Vec3>,
     homologue_end: Vec<Vec3>,
+    bound_stiffness: Vec<f64>,
+    bound_damping: Vec<f64>,
 }
 
 impl Multirate {
     /// Classifies the nodes of `body` for step `dt` and sizes the scratch.
     pub fn new(body: &Body, dt: f64) -> Self {
+        Self::with_room(body, dt, 0)
+    }
+
+    /// Like [`Multirate::new`], with room reserved for `extra_nodes` more nodes (three edges each), so
+    /// that [`Multirate::rebuild`] after a subdivision allocates nothing.
+    pub fn with_room(body: &Body, dt: f64, extra_nodes: usize) -> Self {
+        let n = body.node_count() + extra_nodes;
+        let m = body.edges.len() + 3 * extra_nodes;
+        let mut multirate = Self {
+            fast: Vec::with_capacity(n),
+            substeps: 1,
+            local: Vec::with_capacity(n),
+            start: Vec::with_capacity(n + 1),
+            neighbour: Vec::with_capacity(2 * m),
+            edge: Vec::with_capacity(2 * m),
+            x: Vec::with_capacity(n),
+            v: Vec::with_capacity(n),
+            f: Vec::with_capacity(n),
+            homologue_end: Vec::with_capacity(n),
+            bound_stiffness: Vec::with_capacity(n),
+            bound_damping: Vec::with_capacity(n),
+        };
+        multirate.rebuild(body, dt);
+        multirate
+    }
+
+    /// Classifies the nodes again after the body's topology changed, reusing the scratch (allocates
+    /// nothing while the body stays within the room reserved).
+    pub fn rebuild(&mut self, body: &Body, dt: f64) {
         let s = &body.surface;
         let n = s.mass.len();
-        let (stiffness, damping) = node_bounds(body);
-        let mut fast = Vec::new();
+        node_bounds_into(body, &mut self.bound_stiffness, &mut self.bound_damping);
+        self.fast.clear();
         let mut level_max = 0;
         for i in 0..n {
             let mut level = 0;
             while level < MAX_LEVEL
                 && !stable_at(
-                    stiffness[i],
-                    damping[i],
+                    self.bound_stiffness[i],
+                    self.bound_damping[i],
                     s.inverse_mass[i],
                     dt / (1u32 << level) as f64,
                     SAFETY,
@@ -59,47 +90,56 @@ impl Multirate {
                 level += 1;
             }
             if level > 0 {
-                fast.push(i as u32);
+                self.fast.push(i as u32);
                 level_max = level_max.max(level);
             }
         }
-        let mut local = vec![u32::MAX; n];
-        for (k, &i) in fast.iter().enumerate() {
-            local[i as usize] = k as u32;
+        self.substeps = 1 << level_max;
+        self.local.clear();
+        self.local.resize(n, u32::MAX);
+        for (k, &i) in self.fast.iter().enumerate() {
+            self.local[i as usize] = k as u32;
         }
         // Incident edges of every node (CSR), in edge order.
         let e = &body.edges;
-        let mut start = vec![0u32; n + 1];
+        self.start.clear();
+        self.start.resize(n + 1, 0);
         for k in 0..e.len() {
-            start[e.a[k] as usize + 1] += 1;
-            start[e.b[k] as usize + 1] += 1;
+            self.start[e.a[k] as usize + 1] += 1;
+            self.start[e.b[k] as usize + 1] += 1;
         }
         for i in 0..n {
-            start[i + 1] += start[i];
+            self.start[i + 1] += self.start[i];
         }
-        let mut fill: Vec<u32> = start.clone();
-        let mut neighbour = vec![0u32; 2 * e.len()];
-        let mut edge = vec![0u32; 2 * e.len()];
-        for k in 0..e.len() {
-            for (me, other) in [(e.a[k], e.b[k]), (e.b[k], e.a[k])] {
-                let at = fill[me as usize] as usize;
-                neighbour[at] = other;
-                edge[at] = k as u32;
-                fill[me as usize] += 1;
+        self.neighbour.clear();
+        self.neighbour.resize(2 * e.len(), 0);
+        self.edge.clear();
+        self.edge.resize(2 * e.len(), 0);
+        // Fill each node's slots from the back, `start[i + 1]` (the end of node i's slots) serving as
+        // the cursor: it counts down to the first slot of node i.
+        for k in (0..e.len()).rev() {
+            for (me, other) in [(e.b[k], e.a[k]), (e.a[k], e.b[k])] {
+                let me = me as usize;
+                self.start[me + 1] -= 1;
+                let at = self.start[me + 1] as usize;
+                self.neighbour[at] = other;
+                self.edge[at] = k as u32;
             }
         }
-        let m = fast.len();
-        Self {
-            fast,
-            substeps: 1 << level_max,
-            local,
-            start,
-            neighbour,
-            edge,
-            x: vec![Vec3::zeros(); m],
-            v: vec![Vec3::zeros(); m],
-            f: vec![Vec3::zeros(); m],
-            homologue_end: vec![Vec3::zeros(); m],
+        // Now `start[i + 1]` is where node i's slots begin: shift down by one.
+        for i in 0..n {
+            self.start[i] = self.start[i + 1];
+        }
+        self.start[n] = 2 * e.len() as u32;
+        let m = self.fast.len();
+        for buffer in [
+            &mut self.x,
+            &mut self.v,
+            &mut self.f,
+            &mut self.homologue_end,
+        ] {
+            buffer.clear();
+            buffer.resize(m, Vec3::zeros());
         }
     }
 

@@ -34,14 +34,23 @@ pub fn symplectic_limit(b: f64) -> f64 {
 
 /// Gershgorin sums of every node: (k_link + 2 Σ k_edges, c_link + 2 Σ c_edges + γ).
 pub fn node_bounds(body: &Body) -> (Vec<f64>, Vec<f64>) {
+    let (mut stiffness, mut damping) = (Vec::new(), Vec::new());
+    node_bounds_into(body, &mut stiffness, &mut damping);
+    (stiffness, damping)
+}
+
+/// [`node_bounds`] into buffers the caller keeps (no allocation within their capacity).
+pub fn node_bounds_into(body: &Body, stiffness: &mut Vec<f64>, damping: &mut Vec<f64>) {
     let s = &body.surface;
-    let mut stiffness: Vec<f64> = s.link_stiffness.clone();
-    let mut damping: Vec<f64> = s
-        .link_damping
-        .iter()
-        .zip(&s.air_damping)
-        .map(|(c, g)| c + g)
-        .collect();
+    stiffness.clear();
+    stiffness.extend_from_slice(&s.link_stiffness);
+    damping.clear();
+    damping.extend(
+        s.link_damping
+            .iter()
+            .zip(&s.air_damping)
+            .map(|(c, g)| c + g),
+    );
     let e = &body.edges;
     for k in 0..e.len() {
         for node in [e.a[k] as usize, e.b[k] as usize] {
@@ -49,7 +58,6 @@ pub fn node_bounds(body: &Body) -> (Vec<f64>, Vec<f64>) {
             damping[node] += 2.0 * e.damping[k];
         }
     }
-    (stiffness, damping)
 }
 
 /// Whether a node with these Gershgorin sums and inverse mass is stable under semi-implicit Euler

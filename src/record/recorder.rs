@@ -117,6 +117,13 @@ impl Recorder {
         session: &SessionInfo,
         settings: RecorderSettings,
     ) -> Result<Self, String> {
+        if world.bodies.iter().any(|b| b.params.subdivision.is_some()) {
+            return Err(
+                "adaptive subdivision is not yet supported by recording (the mesh channels assume \
+                        a fixed vertex count); remove `subdivision` from the scene"
+                    .into(),
+            );
+        }
         let file =
             File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()

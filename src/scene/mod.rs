@@ -364,6 +364,56 @@ impl Ctx<'_> {
         Ok(())
     }
 
+    fn subdivision(
+        &self,
+        section: &Spanned<SubdivisionSection>,
+    ) -> Result<Option<crate::topology::SubdivisionSettings>, SceneError> {
+        let s = section.get_ref();
+        if s.enabled == Some(false) {
+            return Ok(None);
+        }
+        let d = crate::topology::SubdivisionSettings::default();
+        let rule = match &s.rule {
+            None => d.rule,
+            Some(r) => crate::topology::SpringRule::from_name(r.get_ref()).ok_or_else(|| {
+                self.error(
+                    r.span(),
+                    format!(
+                        "`rule` must be \"angle\", \"constant_kl\" or \"area\", found {:?}",
+                        r.get_ref()
+                    ),
+                )
+            })?,
+        };
+        let max_depth = match &s.max_depth {
+            None => d.max_depth,
+            Some(v) if (1..=8).contains(v.get_ref()) => *v.get_ref(),
+            Some(v) => {
+                return Err(self.error(
+                    v.span(),
+                    format!("`max_depth` must be 1 to 8, found {}", v.get_ref()),
+                ));
+            }
+        };
+        Ok(Some(crate::topology::SubdivisionSettings {
+            rule,
+            max_depth,
+            min_edge: self.number(s.min_edge.as_ref(), d.min_edge, "min_edge", Rule::Positive)?,
+            coarsen_after_s: self.number(
+                s.coarsen_after.as_ref(),
+                d.coarsen_after_s,
+                "coarsen_after",
+                Rule::NonNegative,
+            )?,
+            tolerance: self.number(
+                s.tolerance.as_ref(),
+                d.tolerance,
+                "tolerance",
+                Rule::Positive,
+            )?,
+        }))
+    }
+
     /// A name from the file, or the default; names appear in traces and service names, so they are
     /// kept to letters, digits, `_`, `-` and `.`.
     fn name(&self, value: Option<&Spanned<String>>, default: String) -> Result<String, SceneError> {
@@ -578,6 +628,10 @@ impl Ctx<'_> {
             integrator: match &b.integrator {
                 None => None,
                 Some(v) => Some(self.integrator(Some(v), world.integrator)?),
+            },
+            subdivision: match &b.subdivision {
+                None => None,
+                Some(v) => self.subdivision(v)?,
             },
         };
         let placement = Placement {

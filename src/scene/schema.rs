@@ -44,6 +44,18 @@ pub(super) struct BodySection {
     pub friction: Option<Spanned<f64>>,
     pub fixed: Option<bool>,
     pub integrator: Option<Spanned<String>>,
+    pub subdivision: Option<Spanned<SubdivisionSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SubdivisionSection {
+    pub enabled: Option<bool>,
+    pub rule: Option<Spanned<String>>,
+    pub max_depth: Option<Spanned<u8>>,
+    pub min_edge: Option<Spanned<f64>>,
+    pub coarsen_after: Option<Spanned<f64>>,
+    pub tolerance: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
