@@ -25,7 +25,7 @@ fn lumped_areas(world: &World) -> Vec<f64> {
 /// A fixed ball of the given icosphere level whose parameters do not depend on the mesh: surface
 /// mass spread by area, the same spring constant on every edge (a triangle lattice's membrane modulus
 /// does not depend on its edge length), and links of a given stiffness and damping per unit area.
-fn ball(level: u32, subdivision: &str, integrator: &str) -> World {
+fn ball(level: u32, subdivision: &str, integrator: &str, kappa: f64, probe_radius: f64) -> World {
     let scene = common::scene(&format!(
         r#"
         [world]
@@ -47,12 +47,14 @@ fn ball(level: u32, subdivision: &str, integrator: &str) -> World {
     let areas = lumped_areas(&world);
     let s = &mut world.bodies[0].surface;
     for (i, a) in areas.iter().enumerate() {
-        s.link_stiffness[i] = 1.5e5 * a;
-        s.link_damping[i] = 600.0 * a;
+        s.link_stiffness[i] = kappa * a;
+        s.link_damping[i] = kappa / 250.0 * a;
     }
     let probe = Tool::new(
         "probe",
-        ToolShape::Sphere { radius: 0.003 },
+        ToolShape::Sphere {
+            radius: probe_radius,
+        },
         ToolInput::Ipc,
         None,
     );
@@ -62,17 +64,19 @@ fn ball(level: u32, subdivision: &str, integrator: &str) -> World {
 
 /// Presses the probe 3 mm along −z into the top of the ball at a point between nodes, holds it, and
 /// returns the mean upward force over the last 100 ms of the hold.
-fn press(world: &mut World) -> f64 {
-    let (x, y) = (0.006, 0.004);
+fn press(world: &mut World, r: f64, depth_max: f64) -> f64 {
+    press_at(world, r, depth_max, 0.006, 0.004)
+}
+
+fn press_at(world: &mut World, r: f64, depth_max: f64, x: f64, y: f64) -> f64 {
     let top = (RADIUS * RADIUS - x * x - y * y).sqrt();
-    let r = 0.003;
     let at = |z: f64| ToolPose {
         position_in_world: Vec3::new(x, y, z),
         ..ToolPose::default()
     };
     let mut sum = 0.0;
     for k in 0..=1000 {
-        let depth = 0.003 * (k as f64 / 500.0).min(1.0);
+        let depth = depth_max * (k as f64 / 500.0).min(1.0);
         world.tools[0].set_target(at(top + r + 0.0005 - depth - 0.0005), 0.0);
         world.step();
         if k > 900 {
@@ -83,40 +87,72 @@ fn press(world: &mut World) -> f64 {
 }
 
 #[test]
-fn precision_of_a_coarse_body_with_subdivision_against_a_fine_one() {
-    let mut fine = ball(5, "", "multirate");
-    let fine_force = press(&mut fine);
-    for level in [3, 4] {
-        let mut w = ball(level, "", "multirate");
-        let f = press(&mut w);
-        eprintln!(
-            "level {level}: {f:.5} N, {} held",
-            w.tools[0].feedback.contacts
-        );
+fn precision_explore() {
+    for (kappa, r, d) in [(1.5e5, 0.004, 0.003), (5e4, 0.005, 0.004)] {
+        for (x, y) in [
+            (0.006, 0.004),
+            (0.003, 0.009),
+            (-0.005, 0.007),
+            (0.011, -0.002),
+        ] {
+            let mut fine = ball(5, "", "multirate", kappa, r);
+            let fine_force = press_at(&mut fine, r, d, x, y);
+            let mut coarse = ball(2, "", "multirate", kappa, r);
+            let coarse_force = press_at(&mut coarse, r, d, x, y);
+            let mut line = format!(
+                "kappa {kappa:e} r {r} d {d} at {x},{y}: fine {fine_force:.5} N, coarse {:+.1} %",
+                100.0 * (coarse_force - fine_force) / fine_force
+            );
+            for (name, key) in [
+                (
+                    "tol2e-5",
+                    "subdivision = { tolerance = 2e-5, max_depth = 8, min_edge = 0.001, coarsen_after = 5.0 }",
+                ),
+                (
+                    "tol1e-4",
+                    "subdivision = { max_depth = 6, min_edge = 0.0015, coarsen_after = 5.0 }",
+                ),
+            ] {
+                let mut refined = ball(2, key, "multirate", kappa, r);
+                let force = press_at(&mut refined, r, d, x, y);
+                line += &format!(
+                    ", {name} {:+.1} % ({} nodes)",
+                    100.0 * (force - fine_force) / fine_force,
+                    refined.bodies[0].node_count()
+                );
+            }
+            eprintln!("{line}");
+        }
     }
-    let mut coarse = ball(2, "", "multirate");
-    let coarse_force = press(&mut coarse);
-    eprintln!(
-        "fine {fine_force:.5} N ({} nodes, {} held), coarse {coarse_force:.5} N",
-        fine.bodies[0].node_count(),
-        fine.tools[0].feedback.contacts
+}
+
+#[test]
+fn debug_case() {
+    let (kappa, r, d, x, y) = (1.5e5, 0.004, 0.003, -0.005, 0.007);
+    let mut w = ball(
+        2,
+        "subdivision = { max_depth = 6, min_edge = 0.0015, coarsen_after = 5.0 }",
+        "multirate",
+        kappa,
+        r,
     );
-    for rule in ["angle", "constant_kl", "area"] {
-        let mut refined = ball(
-            2,
-            &format!(
-                "subdivision = {{ rule = \"{rule}\", max_depth = 6, min_edge = 0.0015, coarsen_after = 5.0 }}"
-            ),
-            "multirate",
-        );
-        let force = press(&mut refined);
-        let r = refined.refinements[0].as_ref().unwrap();
-        eprintln!(
-            "{rule}: {force:.5} N ({:+.1} %), {} nodes, counters {:?}, guard {}",
-            100.0 * (force - fine_force) / fine_force,
-            refined.bodies[0].node_count(),
-            r.counters,
-            refined.guards[0].events
-        );
+    let f = press_at(&mut w, r, d, x, y);
+    let c = w.tools[0].pose.position_in_world;
+    let b = &w.bodies[0];
+    eprintln!(
+        "f {f} counters {:?} contacts {}",
+        w.refinements[0].as_ref().unwrap().counters,
+        w.tools[0].feedback.contacts
+    );
+    for i in 0..b.node_count() {
+        let rel = b.surface.position_in_world[i] - c;
+        if rel.norm() < 0.02 {
+            eprintln!(
+                "node {i} rel {:?} dist-r {:.2} mm held {}",
+                rel.map(|v| (v * 1e4).round() / 10.0),
+                (rel.norm() - r) * 1e3,
+                b.surface.tool_contact[i].tool != u32::MAX
+            );
+        }
     }
 }

@@ -133,6 +133,9 @@ pub struct Body {
     pub rigid: RigidComponent,
     /// Parameters the body was built from.
     pub params: BodyParams,
+    /// Counts changes of the surface's topology (subdivisions and coarsenings), so that whoever
+    /// mirrors the mesh knows when to send it whole again.
+    pub topology_version: u64,
 }
 
 /// Initial placement of a body in the world.
@@ -241,7 +244,21 @@ impl Body {
             edges,
             rigid,
             params: params.clone(),
+            topology_version: 0,
         }
+    }
+
+    /// Most nodes and triangles the body can have: its own, plus the subdivision pool when on.
+    pub fn mesh_capacity(&self) -> (usize, usize) {
+        let room = if self.params.subdivision.is_some() {
+            crate::topology::POOL_NODES
+        } else {
+            0
+        };
+        (
+            self.node_count() + room,
+            self.surface.triangles.len() + 2 * room,
+        )
     }
 
     /// Number of surface nodes.

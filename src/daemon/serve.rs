@@ -141,13 +141,6 @@ pub fn serve(
             eprintln!("palpa serve: warning: {warning}");
         }
     }
-    if scene.bodies.iter().any(|b| b.params.subdivision.is_some()) {
-        return Err(
-            "adaptive subdivision is not yet supported by the daemon (its mesh stream and \
-                    recordings assume a fixed vertex count); remove `subdivision` from the scene"
-                .into(),
-        );
-    }
     let node = create_node()?;
     let mut world = World::from_scene(scene);
     let dt = world.params.dt;

@@ -40,16 +40,32 @@ pub struct MeshEncoder {
     body: u32,
     sent: Vec<[f32; 3]>,
     sent_tick: u64,
+    sent_topology: u64,
 }
 
 impl MeshEncoder {
     /// An encoder for body `body` with `vertices` vertices.
     pub fn new(body: u32, vertices: usize) -> Self {
+        Self::with_capacity(body, vertices, vertices)
+    }
+
+    /// An encoder for body `body` with `vertices` vertices now and room for `capacity` (a body that
+    /// subdivides), so that a keyframe of the grown mesh allocates nothing.
+    pub fn with_capacity(body: u32, vertices: usize, capacity: usize) -> Self {
+        let mut sent = Vec::with_capacity(capacity.max(vertices));
+        sent.resize(vertices, [0.0; 3]);
         Self {
             body,
-            sent: vec![[0.0; 3]; vertices],
+            sent,
             sent_tick: 0,
+            sent_topology: 0,
         }
+    }
+
+    /// Whether the next message must be a keyframe: the mesh no longer has the vertices and
+    /// triangles last sent (`topology` is the body's topology version).
+    pub fn needs_keyframe(&self, vertices: usize, topology: u64) -> bool {
+        vertices != self.sent.len() || topology != self.sent_topology
     }
 
     /// Writes a keyframe of `positions` and `triangles` at `tick` into `out`; returns its header.
@@ -62,6 +78,7 @@ impl MeshEncoder {
         out: &mut [u8],
     ) -> MeshHeaderV1 {
         let mut at = 0;
+        self.sent.resize(positions.len(), [0.0; 3]);
         for (p, sent) in positions.iter().zip(self.sent.iter_mut()) {
             *sent = to_f32(p);
             for v in *sent {
@@ -312,7 +329,10 @@ impl MeshSchedule {
         let bytes = world
             .bodies
             .iter()
-            .map(|b| max_message_bytes(b.node_count(), b.surface.triangles.len()))
+            .map(|b| {
+                let (vertices, triangles) = b.mesh_capacity();
+                max_message_bytes(vertices, triangles)
+            })
             .max()
             .unwrap_or(0)
             .max(1);
@@ -323,7 +343,9 @@ impl MeshSchedule {
                 .bodies
                 .iter()
                 .enumerate()
-                .map(|(i, b)| MeshEncoder::new(i as u32, b.node_count()))
+                .map(|(i, b)| {
+                    MeshEncoder::with_capacity(i as u32, b.node_count(), b.mesh_capacity().0)
+                })
                 .collect(),
             scratch: vec![0; bytes],
             keyframe_requested: true,
@@ -344,7 +366,7 @@ impl MeshSchedule {
     /// Starts again (after a world reset): new encoders, a keyframe next.
     pub fn reset(&mut self, world: &crate::world::World) {
         for (e, b) in self.encoders.iter_mut().zip(&world.bodies) {
-            *e = MeshEncoder::new(e.body, b.node_count());
+            *e = MeshEncoder::with_capacity(e.body, b.node_count(), b.mesh_capacity().0);
         }
         self.keyframe_requested = true;
     }
@@ -367,7 +389,10 @@ impl MeshSchedule {
         }
         for (encoder, body) in self.encoders.iter_mut().zip(&world.bodies) {
             let s = &body.surface;
-            let header = if keyframe {
+            let header = if keyframe
+                || encoder.needs_keyframe(s.position_in_world.len(), body.topology_version)
+            {
+                encoder.sent_topology = body.topology_version;
                 encoder.keyframe(tick, &s.position_in_world, &s.triangles, &mut self.scratch)
             } else {
                 encoder.delta(tick, &s.position_in_world, &mut self.scratch)

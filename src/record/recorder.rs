@@ -117,13 +117,6 @@ impl Recorder {
         session: &SessionInfo,
         settings: RecorderSettings,
     ) -> Result<Self, String> {
-        if world.bodies.iter().any(|b| b.params.subdivision.is_some()) {
-            return Err(
-                "adaptive subdivision is not yet supported by recording (the mesh channels assume \
-                        a fixed vertex count); remove `subdivision` from the scene"
-                    .into(),
-            );
-        }
         let file =
             File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         let mut writer = mcap::WriteOptions::new()
@@ -152,7 +145,10 @@ impl Recorder {
         let mesh_bytes = world
             .bodies
             .iter()
-            .map(|b| crate::display::max_message_bytes(b.node_count(), b.surface.triangles.len()))
+            .map(|b| {
+                let (vertices, triangles) = b.mesh_capacity();
+                crate::display::max_message_bytes(vertices, triangles)
+            })
             .max()
             .unwrap_or(0);
         for _ in 0..settings.mesh_buffers.max(1) {

@@ -553,6 +553,7 @@ pub fn subdivide_face(
         }
     }
     log.entries.push(entry);
+    body.topology_version += 1;
     Ok(p)
 }
 
@@ -679,6 +680,7 @@ pub fn subdivide_edge(
         rescale_kept_edge(body, &mut entry, d, b, area2, (1.0 - t) * area2);
     }
     log.entries.push(entry);
+    body.topology_version += 1;
     Ok(p)
 }
 
@@ -686,6 +688,7 @@ pub fn subdivide_edge(
 /// links and momentum go back to its corners); returns it, or `None` when the mesh is the original.
 pub fn coarsen_last(body: &mut Body, log: &mut InsertionLog) -> Option<u32> {
     let entry = log.entries.pop()?;
+    body.topology_version += 1;
     let s = &mut body.surface;
     let nu = body.params.air_viscosity;
     let p = entry.node as usize;
