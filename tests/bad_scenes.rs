@@ -269,3 +269,27 @@ fn missing_scene_file_is_an_error() {
         "{e}"
     );
 }
+
+#[test]
+fn bad_subdivision_settings_are_errors_with_their_place() {
+    let e = error_of(&format!("{BODY}subdivision = {{ rule = \"fancy\" }}\n"));
+    assert_eq!(
+        e,
+        "bad.toml:4:24: `rule` must be \"angle\", \"constant_kl\" or \"area\", found \"fancy\""
+    );
+    let e = error_of(&format!("{BODY}subdivision = {{ max_depth = 0 }}\n"));
+    assert_eq!(e, "bad.toml:4:29: `max_depth` must be 1 to 8, found 0");
+    let e = error_of(&format!("{BODY}subdivision = {{ min_edge = -0.001 }}\n"));
+    assert!(
+        e.starts_with("bad.toml:4:28: `min_edge` must be a finite number > 0"),
+        "{e}"
+    );
+    let e = error_of(&format!("{BODY}subdivision = {{ depth = 3 }}\n"));
+    assert!(e.starts_with("bad.toml:4:"), "{e}");
+    assert!(e.contains("unknown field `depth`"), "{e}");
+    // Switched off, the body has none.
+    let scene = common::scene(&format!("{BODY}subdivision = {{ enabled = false }}\n"));
+    assert!(scene.bodies[0].params.subdivision.is_none());
+    let scene = common::scene(&format!("{BODY}subdivision = {{}}\n"));
+    assert!(scene.bodies[0].params.subdivision.is_some());
+}

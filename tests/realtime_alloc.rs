@@ -72,3 +72,30 @@ fn a_step_allocates_nothing_after_warm_up() {
         drop(again);
     }
 }
+
+#[test]
+fn subdivision_and_coarsening_allocate_nothing_on_the_tick() {
+    // probe_refine.toml: the probe touches at about 1.5 s, refines while it presses and strokes,
+    // lifts off at 7 s, and every inserted node is removed by about 7.5 s.
+    let scene = load_scene(&common::repo_root().join("scenes/probe_refine.toml")).unwrap();
+    let mut world = World::from_scene(&scene);
+    for _ in 0..1000 {
+        world.step();
+    }
+    ALLOCATIONS.store(0, Ordering::SeqCst);
+    COUNTING.store(true, Ordering::SeqCst);
+    let mut most = 0;
+    for _ in 0..7000 {
+        world.step();
+        most = most.max(world.bodies[0].node_count());
+    }
+    COUNTING.store(false, Ordering::SeqCst);
+    let count = ALLOCATIONS.load(Ordering::SeqCst);
+    let r = world.refinements[0].as_ref().unwrap();
+    assert!(most > 162, "the run refined");
+    assert!(r.counters.coarsened > 0 && world.bodies[0].node_count() == 162);
+    assert_eq!(
+        count, 0,
+        "{count} allocations while refining and coarsening"
+    );
+}

@@ -137,6 +137,7 @@ fn a_face_split_adds_one_node_two_triangles_three_edges_and_coarsening_undoes_it
         body.edges.len(),
     );
     let mass = body.surface_mass();
+    let links: f64 = body.surface.link_stiffness.iter().sum();
     let p = subdivide_face(
         &mut body,
         &mut log,
@@ -156,6 +157,13 @@ fn a_face_split_adds_one_node_two_triangles_three_edges_and_coarsening_undoes_it
         (n + 1, t + 2, e + 3)
     );
     assert!(body.surface.mass[n] > 0.0 && body.surface.mass[n] < mass / n as f64 * 2.0);
+    // The area rule moves link stiffness to the new node without changing the total (the elastic
+    // foundation per unit area is kept).
+    let links_after: f64 = body.surface.link_stiffness.iter().sum();
+    assert!(
+        ((links_after - links) / links).abs() < 1e-12,
+        "{links} → {links_after}"
+    );
     let (ea, eb) = (body.edges.a[3], body.edges.b[3]);
     let q = subdivide_edge(&mut body, &mut log, ea, eb, 0.4, SpringRule::Angle, 1e-4).unwrap();
     assert_eq!(q as usize, n + 1);

@@ -91,6 +91,11 @@ pub struct Surface {
     pub triangles: Vec<[u32; 3]>,
     /// Which tool holds each node, if any (the contact zone).
     pub tool_contact: Vec<ToolContact>,
+    /// Diagonal of each node's stiffness: its link plus its edges (N/m). Kept up to date by
+    /// [`Body::refresh_diagonals`] when the topology changes.
+    pub stiffness_diagonal: Vec<f64>,
+    /// Diagonal of each node's damping: its link, its edges and the air (N·s/m).
+    pub damping_diagonal: Vec<f64>,
 }
 
 /// Edge springs, structure of arrays. Index `e` is edge `e` in every array.
@@ -237,15 +242,19 @@ impl Body {
             link_damping: vec![params.link_damping; n],
             triangles: mesh.triangles.clone(),
             tool_contact: vec![ToolContact::default(); n],
+            stiffness_diagonal: Vec::new(),
+            damping_diagonal: Vec::new(),
         };
-        Self {
+        let mut body = Self {
             name: name.to_string(),
             surface,
             edges,
             rigid,
             params: params.clone(),
             topology_version: 0,
-        }
+        };
+        body.refresh_diagonals();
+        body
     }
 
     /// Most nodes and triangles the body can have: its own, plus the subdivision pool when on.
@@ -259,6 +268,28 @@ impl Body {
             self.node_count() + room,
             self.surface.triangles.len() + 2 * room,
         )
+    }
+
+    /// Recomputes [`Surface::stiffness_diagonal`] and [`Surface::damping_diagonal`] (allocation-free
+    /// within their capacity).
+    pub fn refresh_diagonals(&mut self) {
+        let s = &mut self.surface;
+        s.stiffness_diagonal.clear();
+        s.stiffness_diagonal.extend_from_slice(&s.link_stiffness);
+        s.damping_diagonal.clear();
+        s.damping_diagonal.extend(
+            s.link_damping
+                .iter()
+                .zip(&s.air_damping)
+                .map(|(c, g)| c + g),
+        );
+        let e = &self.edges;
+        for k in 0..e.len() {
+            for node in [e.a[k] as usize, e.b[k] as usize] {
+                s.stiffness_diagonal[node] += e.stiffness[k];
+                s.damping_diagonal[node] += e.damping[k];
+            }
+        }
     }
 
     /// Number of surface nodes.

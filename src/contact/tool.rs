@@ -122,7 +122,12 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
         } else {
             let slip = relative_tangential / slip_speed;
             let remaining = relative_tangential - slip * friction_dv;
-            let moved = held_at + remaining * dt;
+            // The slide itself is taken implicitly in the node's own stiffness (linearised
+            // backward Euler on its diagonal): a light node held between stiff springs slides
+            // towards its balance instead of overshooting it, whatever the step.
+            let effective_mass =
+                mass + dt * surface.damping_diagonal[i] + dt * dt * surface.stiffness_diagonal[i];
+            let moved = held_at + remaining * (dt * mass / effective_mass);
             let (on_surface, _) = tool.parts_end[part].project_to_surface(&moved, &normal);
             let kinetic = slip * (friction * normal_force);
             (

@@ -237,6 +237,8 @@ pub fn reserve_for_subdivision(body: &mut Body) {
     s.link_stiffness.reserve(n);
     s.link_damping.reserve(n);
     s.tool_contact.reserve(n);
+    s.stiffness_diagonal.reserve(n);
+    s.damping_diagonal.reserve(n);
     s.triangles.reserve(2 * n);
     let e = &mut body.edges;
     e.a.reserve(3 * n);
@@ -554,6 +556,7 @@ pub fn subdivide_face(
     }
     log.entries.push(entry);
     body.topology_version += 1;
+    body.refresh_diagonals();
     Ok(p)
 }
 
@@ -681,6 +684,7 @@ pub fn subdivide_edge(
     }
     log.entries.push(entry);
     body.topology_version += 1;
+    body.refresh_diagonals();
     Ok(p)
 }
 
@@ -744,5 +748,6 @@ pub fn coarsen_last(body: &mut Body, log: &mut InsertionLog) -> Option<u32> {
         e.stiffness[k] = stiffness;
         e.damping[k] = damping;
     }
+    body.refresh_diagonals();
     Some(entry.node)
 }

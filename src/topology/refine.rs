@@ -155,8 +155,10 @@ impl Refinement {
                     part: part as u32,
                     point_in_tool: tool.pose.to_tool(&on_surface),
                 };
+                // A position correction, like the projection of a penetrating node: the node keeps
+                // the velocity its corners gave it (momentum), it does not fly out of the tool.
                 s.next_position_in_world[p] = on_surface;
-                s.velocity_in_world[p] = (on_surface - s.position_in_world[p]) / dt;
+                s.position_in_world[p] = on_surface - s.velocity_in_world[p] * dt;
             }
         }
         inserted
