@@ -162,11 +162,149 @@ fn bench_integrators(c: &mut Criterion) {
     group.finish();
 }
 
+/// A fixed ball (icosphere level `subdivisions`) with mesh-independent mechanics (links per unit
+/// area), a 5 mm probe pressed 4 mm into it between the coarse nodes and held there: the set-up of
+/// the precision test in `tests/refinement.rs`.
+fn pressed_ball(subdivisions: u32, subdivision: &str) -> World {
+    use palpa::Vec3;
+    use palpa::tool::{Tool, ToolInput, ToolPose, ToolShape};
+    let text = format!(
+        r#"
+        [world]
+        gravity = [0.0, 0.0, 0.0]
+        integrator = "multirate"
+        [[body]]
+        name = "ball"
+        mesh = {{ icosphere = {{ radius = 0.05, subdivisions = {subdivisions} }} }}
+        fixed = true
+        surface_mass = 2.0
+        surface_stiffness = 40.0
+        surface_damping = 0.02
+        friction = 0.0
+        {subdivision}
+        "#
+    );
+    let scene = parse_scene(&text, "bench.toml", Path::new(".")).expect("bench scene");
+    let mut world = World::from_scene(&scene);
+    let s = &mut world.bodies[0].surface;
+    let mut areas = vec![0.0; s.mass.len()];
+    for t in &s.triangles {
+        let [a, b, c] = t.map(|v| s.homologue_in_body[v as usize]);
+        for v in t {
+            areas[*v as usize] += 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
+        }
+    }
+    for (i, a) in areas.iter().enumerate() {
+        s.link_stiffness[i] = 5e4 * a;
+        s.link_damping[i] = 200.0 * a;
+    }
+    world.add_tool(Tool::new(
+        "probe",
+        ToolShape::Sphere { radius: 0.005 },
+        ToolInput::Ipc,
+        None,
+    ));
+    let (x, y) = (0.006, 0.004);
+    let top = (0.05f64 * 0.05 - x * x - y * y).sqrt();
+    for k in 0..=1000 {
+        let pressed = 0.004 * (k as f64 / 500.0).min(1.0);
+        let pose = ToolPose {
+            position_in_world: Vec3::new(x, y, top + 0.005 - pressed),
+            ..ToolPose::default()
+        };
+        world.tools[0].set_target(pose, 0.0);
+        world.step();
+    }
+    world
+}
+
+/// Adaptive subdivision: the cost of one insertion and of one coarsening on the 162-node body, and
+/// the step of the coarse body refined at a contact against the fine body without refinement.
+fn bench_subdivision(c: &mut Criterion) {
+    use palpa::topology::{
+        InsertionLog, SpringRule, coarsen_last, reserve_for_subdivision, subdivide_edge,
+        subdivide_face,
+    };
+    use std::time::{Duration, Instant};
+    let mut group = c.benchmark_group("subdivision");
+    let mut body = resting_world(2).bodies.remove(0);
+    reserve_for_subdivision(&mut body);
+    let mut log = InsertionLog::default();
+    for rule in [SpringRule::Angle, SpringRule::Area] {
+        group.bench_function(BenchmarkId::new("face_split_162", rule.name()), |b| {
+            b.iter_custom(|iterations| {
+                let mut spent = Duration::ZERO;
+                for _ in 0..iterations {
+                    let start = Instant::now();
+                    black_box(
+                        subdivide_face(&mut body, &mut log, 17, [0.3, 0.3, 0.4], rule, 0.0)
+                            .unwrap(),
+                    );
+                    spent += start.elapsed();
+                    coarsen_last(&mut body, &mut log);
+                }
+                spent
+            })
+        });
+        let (a, b_node) = (body.edges.a[5], body.edges.b[5]);
+        group.bench_function(BenchmarkId::new("edge_split_162", rule.name()), |b| {
+            b.iter_custom(|iterations| {
+                let mut spent = Duration::ZERO;
+                for _ in 0..iterations {
+                    let start = Instant::now();
+                    black_box(
+                        subdivide_edge(&mut body, &mut log, a, b_node, 0.5, rule, 0.0).unwrap(),
+                    );
+                    spent += start.elapsed();
+                    coarsen_last(&mut body, &mut log);
+                }
+                spent
+            })
+        });
+    }
+    group.bench_function("coarsen_162", |b| {
+        b.iter_custom(|iterations| {
+            let mut spent = Duration::ZERO;
+            for _ in 0..iterations {
+                subdivide_face(
+                    &mut body,
+                    &mut log,
+                    17,
+                    [0.3, 0.3, 0.4],
+                    SpringRule::Area,
+                    0.0,
+                )
+                .unwrap();
+                let start = Instant::now();
+                black_box(coarsen_last(&mut body, &mut log));
+                spent += start.elapsed();
+            }
+            spent
+        })
+    });
+    let mut refined = pressed_ball(
+        2,
+        "subdivision = { max_depth = 6, min_edge = 0.0015, coarsen_after = 1000.0 }",
+    );
+    let nodes = refined.bodies[0].node_count();
+    group.bench_function(
+        BenchmarkId::new("pressed_step_refined_coarse", nodes),
+        |b| b.iter(|| refined.step()),
+    );
+    let mut fine = pressed_ball(5, "");
+    let nodes = fine.bodies[0].node_count();
+    group.bench_function(BenchmarkId::new("pressed_step_fine", nodes), |b| {
+        b.iter(|| fine.step())
+    });
+    group.finish();
+}
+
 criterion_group!(
     benches,
     bench_step,
     bench_stages,
     bench_contact,
-    bench_integrators
+    bench_integrators,
+    bench_subdivision
 );
 criterion_main!(benches);
