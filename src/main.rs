@@ -567,6 +567,18 @@ fn check(path: Option<&Path>) -> Result<()> {
                 ""
             }
         );
+        if let Some(sub) = &spec.params.subdivision {
+            println!(
+                "    subdivision at tool contact: rule {}, max depth {}, min edge {} m, tolerance {} m, \
+                 coarsen after {} s, room for {} insertions",
+                sub.rule.name(),
+                sub.max_depth,
+                sub.min_edge,
+                sub.tolerance,
+                sub.coarsen_after_s,
+                palpa::topology::POOL_NODES
+            );
+        }
     }
     for o in &scene.obstacles {
         println!(

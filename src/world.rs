@@ -55,6 +55,8 @@ pub struct Systems {
     pub tool_contact: bool,
     /// Two bodies or more: broad phase and continuous detection between their surfaces.
     pub body_contact: bool,
+    /// Some body refines at tool contact.
+    pub subdivision: bool,
 }
 
 impl Systems {
@@ -73,6 +75,7 @@ impl Systems {
             (self.tool_contact, "feedback"),
             (self.body_contact, "body_broad_phase"),
             (self.body_contact, "body_ccd"),
+            (self.subdivision, "subdivision"),
         ] {
             if on {
                 names.push(name);
@@ -242,6 +245,8 @@ impl World {
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
             tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
             body_contact: self.bodies.len() >= 2,
+            subdivision: !self.tools.is_empty()
+                && self.bodies.iter().any(|b| b.params.subdivision.is_some()),
         };
         self.body_contact = self
             .systems

@@ -449,3 +449,38 @@ fn subdivision_and_coarsening_are_deterministic() {
     assert!(a == b, "traces differ");
     assert!(fa == fb, "feedback traces differ");
 }
+
+#[test]
+fn a_display_follows_the_refined_mesh_through_keyframes() {
+    use palpa::display::{DisplayMesh, MeshSchedule};
+    let path = common::repo_root().join("scenes/probe_refine.toml");
+    let scene = palpa::scene::load_scene(&path).unwrap();
+    let mut world = World::from_scene(&scene);
+    let mut schedule = MeshSchedule::new(&world, 60.0, 2.0);
+    let mut display = DisplayMesh::default();
+    let mut checked_refined = 0;
+    for _ in 0..8000 {
+        world.step();
+        let mut sent = false;
+        schedule
+            .produce(&world, |header, bytes| -> Result<(), ()> {
+                display.apply(header, bytes).expect("every message applies");
+                sent = true;
+                Ok(())
+            })
+            .unwrap();
+        if sent {
+            let s = &world.bodies[0].surface;
+            assert_eq!(display.triangles, s.triangles);
+            assert_eq!(display.positions.len(), s.position_in_world.len());
+            for (shown, exact) in display.positions.iter().zip(&s.position_in_world) {
+                assert_eq!(*shown, [exact.x as f32, exact.y as f32, exact.z as f32]);
+            }
+            checked_refined += (s.mass.len() > 162) as u32;
+        }
+    }
+    assert!(
+        checked_refined > 20,
+        "the display saw the refined mesh {checked_refined} times"
+    );
+}
