@@ -95,6 +95,10 @@ struct ServeArgs {
     /// Milliseconds without a good pose before a tool is marked disconnected.
     #[arg(long, default_value_t = 100)]
     stale_after_ms: u64,
+    /// When stopped, write the whole run's tick timing histograms here (CSV: bin_us, compute_ticks,
+    /// lateness_ticks; 1 µs bins, the last bin holding the longer ones; empty bins left out).
+    #[arg(long)]
+    timings: Option<PathBuf>,
     /// Record the session to this MCAP file.
     #[cfg(feature = "record")]
     #[arg(long)]
@@ -450,6 +454,21 @@ fn serve(args: ServeArgs) -> Result<()> {
         summary.compute_p99_us,
         summary.compute_max_us
     );
+    if let Some(path) = &args.timings {
+        let mut csv = String::from("bin_us,compute_ticks,lateness_ticks\n");
+        for (bin, (c, l)) in summary
+            .compute_histogram
+            .iter()
+            .zip(&summary.lateness_histogram)
+            .enumerate()
+        {
+            if *c > 0 || *l > 0 {
+                csv.push_str(&format!("{bin},{c},{l}\n"));
+            }
+        }
+        std::fs::write(path, csv)
+            .with_context(|| format!("cannot write the timings to {}", path.display()))?;
+    }
     Ok(())
 }
 

@@ -168,6 +168,107 @@ impl BodySolver {
     }
 }
 
+/// The stages of a step, as [`World::step_profiled`] times them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Tools moved to their pose, feedback and reactions reset.
+    Tools,
+    /// Springs, links, gravity and air on every node and on the rigid component.
+    Forces,
+    /// Contact response: held nodes stick, slide or let go; node–obstacle contact; the tool guard.
+    Contact,
+    /// Free nodes integrated (symplectic, multi-rate or implicit).
+    Integration,
+    /// Continuous detection against the tools: node trajectories (swept-box broad phase, then
+    /// conservative advancement) and triangles between nodes.
+    ToolCcd,
+    /// Adaptive subdivision and coarsening.
+    Subdivision,
+    /// Body–body broad phase (BVH) and continuous detection, with the response.
+    BodyContact,
+    /// Positions committed, rigid components integrated.
+    Commit,
+    /// Divergence guard, feedback clamp.
+    Guard,
+}
+
+impl Stage {
+    /// Every stage, in step order.
+    pub const ALL: [Stage; 9] = [
+        Stage::Tools,
+        Stage::Forces,
+        Stage::Contact,
+        Stage::Integration,
+        Stage::ToolCcd,
+        Stage::Subdivision,
+        Stage::BodyContact,
+        Stage::Commit,
+        Stage::Guard,
+    ];
+
+    /// The name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Tools => "tools",
+            Stage::Forces => "forces",
+            Stage::Contact => "contact",
+            Stage::Integration => "integration",
+            Stage::ToolCcd => "tool_ccd",
+            Stage::Subdivision => "subdivision",
+            Stage::BodyContact => "body_contact",
+            Stage::Commit => "commit",
+            Stage::Guard => "guard",
+        }
+    }
+}
+
+/// Marks where a step enters a stage.
+trait StageClock {
+    fn enter(&mut self, stage: Stage);
+}
+
+/// No timing: compiles away.
+struct NoClock;
+
+impl StageClock for NoClock {
+    #[inline(always)]
+    fn enter(&mut self, _stage: Stage) {}
+}
+
+/// Wall time spent in each stage, summed over the profiled steps (s).
+#[derive(Clone, Debug, Default)]
+pub struct StepProfile {
+    /// Seconds per stage, indexed like [`Stage::ALL`].
+    pub seconds: [f64; 9],
+    /// Steps profiled.
+    pub steps: u64,
+    current: Option<(Stage, std::time::Instant)>,
+}
+
+impl StepProfile {
+    fn close(&mut self) {
+        if let Some((stage, since)) = self.current.take() {
+            self.seconds[stage as usize] += since.elapsed().as_secs_f64();
+        }
+        self.steps += 1;
+    }
+
+    /// Mean time per step in a stage (s).
+    pub fn mean(&self, stage: Stage) -> f64 {
+        self.seconds[stage as usize] / self.steps.max(1) as f64
+    }
+}
+
+impl StageClock for StepProfile {
+    fn enter(&mut self, stage: Stage) {
+        let now = std::time::Instant::now();
+        if let Some((previous, since)) = self.current {
+            self.seconds[previous as usize] += (now - since).as_secs_f64();
+        }
+        self.current = Some((stage, now));
+    }
+}
+
 /// Ticks between energy checks of the divergence guard (the other checks run every tick).
 const ENERGY_CHECK_EVERY: u64 = 16;
 
@@ -295,6 +396,18 @@ impl World {
     /// trajectories; then per body positions committed → rigid component; last, each tool's feedback
     /// is clamped to its `max_force`.
     pub fn step(&mut self) {
+        self.step_with(&mut NoClock);
+    }
+
+    /// [`World::step`], timing its stages into `profile` (for the bench tools; the physics is the
+    /// same bit for bit, the clock is only read).
+    pub fn step_profiled(&mut self, profile: &mut StepProfile) {
+        self.step_with(profile);
+        profile.close();
+    }
+
+    fn step_with<C: StageClock>(&mut self, clock: &mut C) {
+        clock.enter(Stage::Tools);
         let dt = self.params.dt;
         let gravity = self.params.gravity;
         let mut counters = StepCounters::default();
@@ -314,10 +427,13 @@ impl World {
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
         {
+            clock.enter(Stage::Forces);
             accumulate_body_forces(body, &gravity);
+            clock.enter(Stage::Contact);
             if systems.tool_contact {
                 hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
             }
+            clock.enter(Stage::Integration);
             match solver {
                 BodySolver::Symplectic if systems.tool_contact => {
                     integrate_free_nodes_symplectic(&mut body.surface, dt)
@@ -327,8 +443,10 @@ impl World {
                 BodySolver::Implicit(i) => i.integrate(body, dt),
             }
             if systems.tool_contact {
+                clock.enter(Stage::ToolCcd);
                 counters.tool_captures +=
                     capture_new_contacts(&mut body.surface, &mut self.tools, dt);
+                clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {
                     let inserted = refinement.refine_at_tools(body, &self.tools, self.tick + 1, dt);
                     if inserted > 0 {
@@ -337,8 +455,10 @@ impl World {
                         topology_changed = true;
                     }
                 }
+                clock.enter(Stage::ToolCcd);
                 counters.tool_face_contacts += detect_face_contacts(&body.surface, &self.tools);
             }
+            clock.enter(Stage::Contact);
             if systems.obstacle_contact {
                 counters.obstacle_contacts += resolve_nodes_against_obstacles(
                     &mut body.surface,
@@ -351,14 +471,17 @@ impl World {
                 counters.tool_push_outs += push_out_of_tools(&mut body.surface, &self.tools, dt);
             }
         }
+        clock.enter(Stage::BodyContact);
         if let Some(scratch) = self.body_contact.as_mut() {
             counters.bodies = resolve_body_collisions(&mut self.bodies, scratch, dt);
         }
+        clock.enter(Stage::Commit);
         for body in &mut self.bodies {
             commit_positions(&mut body.surface);
             body.rigid.integrate(dt);
         }
         // Coarsening, before the guard looks at the bodies.
+        clock.enter(Stage::Subdivision);
         for ((body, solver), refinement) in self
             .bodies
             .iter_mut()
@@ -374,6 +497,7 @@ impl World {
                 }
             }
         }
+        clock.enter(Stage::Guard);
         // Work the tools did on the tissue this tick (the tissue pushes the tool with the feedback).
         let tool_work: f64 = self
             .tools

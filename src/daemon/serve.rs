@@ -60,7 +60,7 @@ impl Default for ServeOptions {
 }
 
 /// What a run did.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ServeSummary {
     /// Ticks stepped.
     pub ticks: u64,
@@ -76,6 +76,10 @@ pub struct ServeSummary {
     pub compute_mean_us: f64,
     /// 99th percentile of the tick compute time over the whole run (µs, 1 µs resolution).
     pub compute_p99_us: f64,
+    /// Ticks per 1 µs bin of compute time over the whole run (the last bin holds the longer ones).
+    pub compute_histogram: Vec<u32>,
+    /// Ticks per 1 µs bin of wake-up lateness over the whole run.
+    pub lateness_histogram: Vec<u32>,
 }
 
 /// Applies the real-time requests one by one; returns a warning for each that was not granted.
@@ -372,6 +376,8 @@ pub fn serve(
         }
     }
     summary.compute_mean_us /= summary.ticks.max(1) as f64;
+    summary.compute_histogram = whole_run.compute_histogram().to_vec();
+    summary.lateness_histogram = whole_run.lateness_histogram().to_vec();
     let mut overall = StatsV1::default();
     whole_run.close_window(&mut overall);
     summary.compute_p99_us = overall.compute_p99_us;

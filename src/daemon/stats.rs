@@ -11,6 +11,7 @@ const BINS: usize = 5000;
 #[derive(Clone, Debug)]
 pub struct LoopStats {
     histogram: Vec<u32>,
+    lateness_histogram: Vec<u32>,
     count: u64,
     sum_us: f64,
     min_us: f64,
@@ -25,6 +26,7 @@ impl Default for LoopStats {
     fn default() -> Self {
         Self {
             histogram: vec![0; BINS],
+            lateness_histogram: vec![0; BINS],
             count: 0,
             sum_us: 0.0,
             min_us: f64::INFINITY,
@@ -41,6 +43,7 @@ impl LoopStats {
     pub fn record(&mut self, compute_us: f64, lateness_us: f64, period_us: f64) {
         let bin = (compute_us.max(0.0) as usize).min(BINS - 1);
         self.histogram[bin] += 1;
+        self.lateness_histogram[(lateness_us.max(0.0) as usize).min(BINS - 1)] += 1;
         self.count += 1;
         self.sum_us += compute_us;
         self.min_us = self.min_us.min(compute_us);
@@ -50,6 +53,16 @@ impl LoopStats {
         if compute_us > period_us {
             self.synchronicity_misses += 1;
         }
+    }
+
+    /// Ticks of the current window per 1 µs bin of compute time (the last bin holds the longer ones).
+    pub fn compute_histogram(&self) -> &[u32] {
+        &self.histogram
+    }
+
+    /// Ticks of the current window per 1 µs bin of wake-up lateness.
+    pub fn lateness_histogram(&self) -> &[u32] {
+        &self.lateness_histogram
     }
 
     /// Ticks recorded in the current window.
@@ -79,7 +92,11 @@ impl LoopStats {
         out.lateness_mean_us = self.lateness_sum_us / n;
         out.lateness_max_us = self.lateness_max_us;
         out.synchronicity_misses = self.synchronicity_misses;
-        for c in &mut self.histogram {
+        for c in self
+            .histogram
+            .iter_mut()
+            .chain(self.lateness_histogram.iter_mut())
+        {
             *c = 0;
         }
         self.count = 0;
