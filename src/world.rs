@@ -332,8 +332,18 @@ impl World {
         self.assemble();
     }
 
+    /// Rebuilds everything derived from the bodies — which systems run, each body's integrator
+    /// scratch and multi-rate classification, its divergence guard (budget from the energy now), its
+    /// refinement state — after bodies were changed in place (masses, stiffnesses, positions).
+    pub fn reassemble(&mut self) {
+        self.assemble();
+    }
+
     /// Decides which systems run from what the world holds, and sizes the per-obstacle buffers.
     fn assemble(&mut self) {
+        for body in &mut self.bodies {
+            body.refresh_diagonals();
+        }
         self.obstacle_reactions = vec![Vec3::zeros(); self.obstacles.len()];
         self.systems = Systems {
             gravity: self.params.gravity != Vec3::zeros(),

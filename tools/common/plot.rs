@@ -66,7 +66,9 @@ pub fn loglog(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
-        .x_label_formatter(&|v| format!("{v:.3e}"))
+        .x_labels(6)
+        .y_labels(8)
+        .x_label_formatter(&|v| format!("{v:.1e}"))
         .y_label_formatter(&|v| format!("{v:.1e}"))
         .draw()
         .map_err(|e| e.to_string())?;

@@ -1,0 +1,241 @@
+//! `palpa-bench` and `palpa-report` in their `--quick` modes: they run, write their files, and the
+//! figures in them parse, are finite and hang together (the paper's scheme converges at order 1 on
+//! the damped oscillator; the ping-pong floor is below the loop's round trip; the explicit bound
+//! predicts where the paper's scheme is stable).
+
+mod common;
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+use std::sync::Mutex;
+
+/// The tools time things: one at a time.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn run(exe: &str, args: &[&str]) {
+    let output = Command::new(exe)
+        .args(args)
+        .output()
+        .expect("the tool starts");
+    assert!(
+        output.status.success(),
+        "{exe} {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+fn json(path: &Path) -> Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn finite(v: &Value) -> f64 {
+    let x = v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"));
+    assert!(x.is_finite(), "not finite: {v}");
+    x
+}
+
+fn out_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("palpa_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn bench_latency_quick_writes_consistent_figures() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = out_dir("bench_latency");
+    run(
+        env!("CARGO_BIN_EXE_palpa-bench"),
+        &["latency", "--quick", "--out", dir.to_str().unwrap()],
+    );
+    for file in [
+        "latency.md",
+        "latency_round_trip.svg",
+        "latency_tick_compute.svg",
+        "latency_timings.csv",
+    ] {
+        assert!(dir.join(file).is_file(), "{file} written");
+    }
+    let r = json(&dir.join("latency.json"));
+    let sent = finite(&r["poses_sent"]);
+    let answered = finite(&r["poses_answered"]);
+    assert!(
+        sent >= 2500.0 && answered >= 0.9 * sent,
+        "{answered} of {sent} answered"
+    );
+    let rt = &r["round_trip_us"];
+    let (median, p99, p999, max) = (
+        finite(&rt["median"]),
+        finite(&rt["p99"]),
+        finite(&rt["p99_9"]),
+        finite(&rt["max"]),
+    );
+    assert!(
+        0.0 < median && median <= p99 && p99 <= p999 && p999 <= max,
+        "{rt}"
+    );
+    let floor = finite(&r["floor_ping_pong_us"]["median"]);
+    assert!(
+        floor > 0.0 && floor < median,
+        "floor {floor} µs, loop {median} µs"
+    );
+    assert!(
+        (finite(&r["ratio_median_round_trip_to_floor"]) - median / floor).abs()
+            < 1e-6 * median / floor
+    );
+    let d = &r["daemon"];
+    assert!(finite(&d["ticks"]) > 2500.0);
+    let (mean, p99c, maxc) = (
+        finite(&d["compute_mean_us"]),
+        finite(&d["compute_p99_us"]),
+        finite(&d["compute_max_us"]),
+    );
+    assert!(0.0 < mean && mean <= maxc && p99c <= maxc, "{d}");
+    assert!(finite(&d["share_of_median_round_trip"]) < 1.0);
+    finite(&d["lateness_mean_us"]);
+    finite(&d["synchronicity_misses"]);
+    // The histogram file sums to the ticks.
+    let csv = std::fs::read_to_string(dir.join("latency_timings.csv")).unwrap();
+    let ticks: u64 = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse::<u64>().unwrap())
+        .sum();
+    assert_eq!(ticks as f64, finite(&d["ticks"]));
+}
+
+#[test]
+fn bench_scaling_quick_writes_consistent_figures() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = out_dir("bench_scaling");
+    run(
+        env!("CARGO_BIN_EXE_palpa-bench"),
+        &["scaling", "--quick", "--out", dir.to_str().unwrap()],
+    );
+    assert!(dir.join("scaling.md").is_file() && dir.join("scaling.svg").is_file());
+    let r = json(&dir.join("scaling.json"));
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for row in rows {
+        let median = finite(&row["median_us"]);
+        assert!(median > 0.0);
+        let stages: f64 = row["stages_mean_us"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(finite)
+            .sum();
+        // The stages add up to the step (within timer overhead and the median/mean difference).
+        assert!(stages > 0.5 * median && stages < 2.0 * median, "{row}");
+        if row["probe"] == true {
+            assert!(
+                finite(&row["contacts"]) > 0.0,
+                "the probe is in contact: {row}"
+            );
+        }
+    }
+    let slope = finite(&r["slope_without_probe"]);
+    assert!(
+        (0.6..1.4).contains(&slope),
+        "step time grows about linearly with nodes: {slope}"
+    );
+}
+
+#[test]
+fn report_quick_writes_consistent_figures() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = out_dir("report");
+    run(
+        env!("CARGO_BIN_EXE_palpa-report"),
+        &["--quick", "--out", dir.to_str().unwrap()],
+    );
+    for file in [
+        "report.md",
+        "work_precision.csv",
+        "convergence.csv",
+        "subdivision.csv",
+        "stability_map.csv",
+        "extremes.csv",
+        "work_precision_oscillator.svg",
+        "work_precision_inclined_plane.svg",
+        "work_precision_probe.svg",
+        "work_precision_subdivision.svg",
+        "stability_symplectic.svg",
+        "stability_multirate.svg",
+        "stability_implicit.svg",
+    ] {
+        assert!(dir.join(file).is_file(), "{file} written");
+    }
+    let r = json(&dir.join("report.json"));
+    let rows = r["work_precision"].as_array().unwrap();
+    assert_eq!(
+        rows.len(),
+        3 * 3 * 4,
+        "three scenes, three integrators, four steps"
+    );
+    for row in rows {
+        assert!(
+            finite(&row["error_l2_m"]) > 0.0 && finite(&row["seconds_per_simulated_second"]) > 0.0
+        );
+    }
+    // The paper's scheme is first order on the damped oscillation (exact reference).
+    let order = r["orders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|o| {
+            o["scene"] == "oscillator" && o["integrator"] == "symplectic" && o["to_dt_ms"] == 0.5
+        })
+        .expect("an order for 1 → 0.5 ms");
+    let p = finite(&order["order_l2"]);
+    let p_final = finite(&order["order_final"]);
+    assert!((0.8..1.2).contains(&p), "observed order {p}");
+    assert!(
+        (0.8..1.2).contains(&p_final),
+        "observed order at the final time {p_final}"
+    );
+    // The error falls with the step on the oscillator for every integrator.
+    for integrator in ["symplectic", "multirate", "implicit"] {
+        let errors: Vec<f64> = rows
+            .iter()
+            .filter(|x| x["scene"] == "oscillator" && x["integrator"] == integrator)
+            .map(|x| finite(&x["error_l2_m"]))
+            .collect();
+        assert!(
+            errors.windows(2).all(|w| w[1] < w[0]),
+            "{integrator}: {errors:?}"
+        );
+    }
+    // Coarse + subdivision beats the same coarse mesh without it, within 10 % of the reference.
+    let sub = r["subdivision"].as_array().unwrap();
+    let error_of = |name: &str| {
+        finite(
+            &sub.iter()
+                .find(|x| x["variant"].as_str().unwrap().starts_with(name))
+                .unwrap()["mean_abs_force_error_rel"],
+        )
+    };
+    assert!(error_of("coarse 162 + subdivision") < 0.10);
+    assert!(error_of("uniform level 2") > 0.5);
+    // The explicit bound predicts where the paper's scheme is stable; the others go beyond it.
+    let a = &r["stability_bound_agreement"];
+    let cells = finite(&a["symplectic"]["cells"]);
+    assert!(
+        finite(&a["symplectic"]["agree_with_explicit_bound"]) >= 0.9 * cells,
+        "{a}"
+    );
+    assert!(
+        finite(&a["multirate"]["stable_beyond_explicit_bound"]) > 0.0,
+        "{a}"
+    );
+    assert!(
+        finite(&a["implicit"]["stable"]) >= finite(&a["symplectic"]["stable"]),
+        "{a}"
+    );
+    let extremes = r["extremes"].as_array().unwrap();
+    assert_eq!(extremes.len(), 21);
+    assert!(extremes.iter().all(|x| x["outcome"] != "non-finite"));
+}
