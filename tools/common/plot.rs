@@ -98,11 +98,20 @@ pub fn loglog(
                 .legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
         }
     }
+    // The legend goes where the curves are not: upper left when they rise.
+    let rising = series
+        .first()
+        .map(|s| loglog_slope(&s.points) > 0.0)
+        .unwrap_or(false);
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(if rising {
+            SeriesLabelPosition::UpperLeft
+        } else {
+            SeriesLabelPosition::UpperRight
+        })
         .draw()
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())
