@@ -484,3 +484,40 @@ fn a_display_follows_the_refined_mesh_through_keyframes() {
         "the display saw the refined mesh {checked_refined} times"
     );
 }
+
+#[test]
+fn a_refining_session_records_and_replays_bit_for_bit() {
+    let dir = std::env::temp_dir().join(format!("palpa_refine_record_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("refine.mcap");
+    let scene = common::repo_root().join("scenes/probe_refine.toml");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args([
+            "run",
+            scene.to_str().unwrap(),
+            "--duration",
+            "8",
+            "--record",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let verify = std::process::Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .arg(&file)
+        .arg("--verify")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&verify.stdout);
+    assert!(
+        verify.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&verify.stderr)
+    );
+    assert!(text.contains("verify: OK"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
