@@ -455,18 +455,7 @@ fn serve(args: ServeArgs) -> Result<()> {
         summary.compute_max_us
     );
     if let Some(path) = &args.timings {
-        let mut csv = String::from("bin_us,compute_ticks,lateness_ticks\n");
-        for (bin, (c, l)) in summary
-            .compute_histogram
-            .iter()
-            .zip(&summary.lateness_histogram)
-            .enumerate()
-        {
-            if *c > 0 || *l > 0 {
-                csv.push_str(&format!("{bin},{c},{l}\n"));
-            }
-        }
-        std::fs::write(path, csv)
+        std::fs::write(path, summary.timings_csv())
             .with_context(|| format!("cannot write the timings to {}", path.display()))?;
     }
     Ok(())

@@ -82,6 +82,25 @@ pub struct ServeSummary {
     pub lateness_histogram: Vec<u32>,
 }
 
+impl ServeSummary {
+    /// The whole run's timing histograms as CSV: `bin_us,compute_ticks,lateness_ticks`, 1 µs bins
+    /// (the last one holding the longer ticks), empty bins left out.
+    pub fn timings_csv(&self) -> String {
+        let mut csv = String::from("bin_us,compute_ticks,lateness_ticks\n");
+        for (bin, (c, l)) in self
+            .compute_histogram
+            .iter()
+            .zip(&self.lateness_histogram)
+            .enumerate()
+        {
+            if *c > 0 || *l > 0 {
+                csv.push_str(&format!("{bin},{c},{l}\n"));
+            }
+        }
+        csv
+    }
+}
+
 /// Applies the real-time requests one by one; returns a warning for each that was not granted.
 fn setup_realtime() -> Vec<String> {
     let mut warnings = Vec::new();

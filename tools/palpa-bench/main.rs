@@ -40,6 +40,15 @@ enum Cmd {
     Latency(LatencyArgs),
     /// Step time against node count, per stage, with and without a probe in contact.
     Scaling(ScalingArgs),
+    /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
+    /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
+    #[command(hide = true)]
+    Daemon {
+        #[arg(long)]
+        prefix: String,
+        #[arg(long)]
+        timings: PathBuf,
+    },
     /// (internal) The far side of the ping-pong floor: answers every pose with a feedback.
     #[command(hide = true)]
     Echo {
@@ -81,6 +90,7 @@ fn main() -> Result<()> {
         Cmd::Latency(args) => latency(args),
         Cmd::Scaling(args) => scaling(args),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
+        Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
 }
 
@@ -94,19 +104,46 @@ fn today() -> String {
         .unwrap_or_default()
 }
 
-fn sibling(name: &str) -> Result<PathBuf> {
+/// The daemon process to start: `palpa serve --rt` when the `palpa` executable sits next to this
+/// one (a `cargo build`), else this executable's own `daemon` mode, which runs the same serve loop.
+fn daemon_command(prefix: &str, timings: &Path) -> Result<Command> {
     let exe = std::env::current_exe().context("cannot find this executable")?;
-    let path = exe
-        .parent()
-        .context("executable has no directory")?
-        .join(name);
-    if !path.exists() {
-        bail!(
-            "cannot find `{}` next to palpa-bench (build it: cargo build --release)",
-            path.display()
-        );
+    let palpa = exe.with_file_name("palpa");
+    let mut command;
+    if palpa.is_file() {
+        command = Command::new(palpa);
+        command.args(["serve", "--rt", "--prefix", prefix, "--timings"]);
+    } else {
+        command = Command::new(exe);
+        command.args(["daemon", "--prefix", prefix, "--timings"]);
     }
-    Ok(path)
+    command.arg(timings);
+    Ok(command)
+}
+
+fn daemon(prefix: &str, timings: &Path) -> Result<()> {
+    use palpa::daemon::serve::{ServeOptions, serve};
+    use palpa::daemon::sink::RecordSink;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler = stop.clone();
+    ctrlc::set_handler(move || handler.store(true, Ordering::Relaxed))
+        .context("cannot install the SIGTERM handler")?;
+    let options = ServeOptions {
+        prefix: prefix.to_string(),
+        realtime: true,
+        ..ServeOptions::default()
+    };
+    let summary = serve(
+        &palpa::scene::default_scene(),
+        &options,
+        stop,
+        &RecordSink::none(),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    std::fs::write(timings, summary.timings_csv())
+        .with_context(|| format!("cannot write {}", timings.display()))
 }
 
 /// Summary of a latency sample set (µs).
@@ -154,9 +191,17 @@ fn latency(args: LatencyArgs) -> Result<()> {
     let mut progress = Progress::new("latency", 3);
 
     // 1. Daemon (real-time mode) + simulated device.
-    let daemon = Command::new(sibling("palpa")?)
-        .args(["serve", "--rt", "--prefix", &prefix, "--timings"])
-        .arg(&timings)
+    let mut command = daemon_command(&prefix, &timings)?;
+    let daemon_process = format!(
+        "{} {}",
+        command.get_program().to_string_lossy(),
+        command
+            .get_args()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let daemon = command
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -249,6 +294,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
         "machine": machine(),
         "duration_s": duration,
         "scene": "embedded default (scenes/organ.toml), tool `probe`",
+        "daemon_process": daemon_process,
         "device": "simulated Geomagic Touch, palpate motion, 1 kHz",
         "poses_sent": report.poses_sent,
         "poses_answered": report.latencies_us.len(),
