@@ -133,11 +133,12 @@ fn bench_contact(c: &mut Criterion) {
     let obstacles = world.obstacles.clone();
     let mut reactions = vec![Vec3::zeros(); obstacles.len()];
     let World { bodies, tools, .. } = &mut world;
+    let mut outcodes = Vec::with_capacity(bodies[0].node_count());
     group.bench_function("detection_stages", |b| {
         b.iter(|| {
             let surface = &mut bodies[0].surface;
             let captured = capture_new_contacts(surface, tools, dt);
-            let faces = detect_face_contacts(surface, tools);
+            let faces = detect_face_contacts(surface, tools, &mut outcodes);
             let table = resolve_nodes_against_obstacles(surface, &obstacles, &mut reactions, dt);
             black_box((captured, faces, table))
         })

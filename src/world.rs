@@ -131,6 +131,8 @@ pub struct World {
     pub guards: Vec<Guard>,
     /// Adaptive subdivision state of each body (`None` where the scene leaves it off).
     pub refinements: Vec<Option<Refinement>>,
+    /// Broad-phase scratch of the face-contact detection, one byte per node of each body.
+    face_outcodes: Vec<Vec<u8>>,
 }
 
 /// The integrator of one body with its scratch memory.
@@ -288,6 +290,7 @@ impl World {
             solvers: Vec::new(),
             guards: Vec::new(),
             refinements: Vec::new(),
+            face_outcodes: Vec::new(),
         };
         world.assemble();
         world
@@ -380,6 +383,11 @@ impl World {
             .iter()
             .map(|b| solver_for(b, world_integrator, dt))
             .collect();
+        self.face_outcodes = self
+            .bodies
+            .iter()
+            .map(|b| Vec::with_capacity(b.mesh_capacity().0))
+            .collect();
         let gravity = self.params.gravity;
         self.guards = self
             .bodies
@@ -431,11 +439,12 @@ impl World {
         }
         let systems = self.systems;
         let mut topology_changed = false;
-        for ((body, solver), refinement) in self
+        for (((body, solver), refinement), outcodes) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
+            .zip(self.face_outcodes.iter_mut())
         {
             clock.enter(Stage::Forces);
             accumulate_body_forces(body, &gravity);
@@ -466,7 +475,8 @@ impl World {
                     }
                 }
                 clock.enter(Stage::ToolCcd);
-                counters.tool_face_contacts += detect_face_contacts(&body.surface, &self.tools);
+                counters.tool_face_contacts +=
+                    detect_face_contacts(&body.surface, &self.tools, outcodes);
             }
             clock.enter(Stage::Contact);
             if systems.obstacle_contact {

@@ -229,6 +229,22 @@ impl Aabb {
         self.max += Vec3::repeat(margin);
     }
 
+    /// Which sides of the box the segment from `p` to `q` lies wholly beyond: bit 2k for below the
+    /// box on axis k, bit 2k+1 for above. Points whose codes have a common bit have a bounding box
+    /// that misses this one (the classic outcode test, exact like [`Aabb::overlaps_segment`]).
+    pub fn outcode(&self, p: &Vec3, q: &Vec3) -> u8 {
+        let mut code = 0;
+        for k in 0..3 {
+            if p[k] < self.min[k] && q[k] < self.min[k] {
+                code |= 1 << (2 * k);
+            }
+            if p[k] > self.max[k] && q[k] > self.max[k] {
+                code |= 2 << (2 * k);
+            }
+        }
+        code
+    }
+
     /// True when the segment from `p` to `q` may meet the box (its own box overlaps).
     pub fn overlaps_segment(&self, p: &Vec3, q: &Vec3) -> bool {
         let lo = p.inf(q);

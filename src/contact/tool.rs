@@ -251,19 +251,20 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
 /// this way. The paper's response, a node inserted at the touch point with its mass taken from the
 /// corners, comes with adaptive subdivision; until then these contacts are counted, and the nodes
 /// around them still meet the tool through [`capture_new_contacts`].
-pub fn detect_face_contacts(surface: &Surface, tools: &[Tool]) -> u32 {
+///
+/// `outcodes` is scratch memory (one byte per node; give it the capacity of the node count and the
+/// call allocates nothing): the broad phase codes each node's trajectory against the tool's swept box
+/// once, and a triangle is looked at only if its three corners' codes share no side.
+pub fn detect_face_contacts(surface: &Surface, tools: &[Tool], outcodes: &mut Vec<u8>) -> u32 {
     let mut touched = 0;
     for tool in tools {
         let sweep = swept_box(tool);
         let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
+        outcodes.clear();
+        outcodes.extend(x0.iter().zip(x1).map(|(p, q)| sweep.outcode(p, q)));
         for &[a, b, c] in &surface.triangles {
             let (a, b, c) = (a as usize, b as usize, c as usize);
-            // Cheap reject first: the triangle's swept box against the tool's, read in place.
-            let mut lo = x0[a].inf(&x0[b]).inf(&x0[c]);
-            lo = lo.inf(&x1[a]).inf(&x1[b]).inf(&x1[c]);
-            let mut hi = x0[a].sup(&x0[b]).sup(&x0[c]);
-            hi = hi.sup(&x1[a]).sup(&x1[b]).sup(&x1[c]);
-            if !sweep.overlaps_segment(&lo, &hi) {
+            if outcodes[a] & outcodes[b] & outcodes[c] != 0 {
                 continue;
             }
             let corners = [a, b, c];
