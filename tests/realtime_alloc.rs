@@ -35,8 +35,12 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The counter is global: the tests take turns.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 #[test]
 fn a_step_allocates_nothing_after_warm_up() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     for scene in [
         "scenes/organ.toml",
         "scenes/inclined_plane.toml",
@@ -75,6 +79,7 @@ fn a_step_allocates_nothing_after_warm_up() {
 
 #[test]
 fn subdivision_and_coarsening_allocate_nothing_on_the_tick() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // probe_refine.toml: the probe touches at about 1.5 s, refines while it presses and strokes,
     // lifts off at 7 s, and every inserted node is removed by about 7.5 s.
     let scene = load_scene(&common::repo_root().join("scenes/probe_refine.toml")).unwrap();

@@ -411,6 +411,10 @@ impl Ctx<'_> {
                 "tolerance",
                 Rule::Positive,
             )?,
+            zone_edge: match &s.zone_edge {
+                None => d.zone_edge,
+                Some(v) => Some(self.number(Some(v), 0.0, "zone_edge", Rule::Positive)?),
+            },
         }))
     }
 

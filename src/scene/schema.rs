@@ -56,6 +56,7 @@ pub(super) struct SubdivisionSection {
     pub min_edge: Option<Spanned<f64>>,
     pub coarsen_after: Option<Spanned<f64>>,
     pub tolerance: Option<Spanned<f64>>,
+    pub zone_edge: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]

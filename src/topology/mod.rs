@@ -81,6 +81,9 @@ pub struct SubdivisionSettings {
     pub coarsen_after_s: f64,
     /// How far the surface between held nodes may cut into a tool before a node is inserted (m).
     pub tolerance: f64,
+    /// Longest rest edge of a triangle at a held node (m); `None`: 1.6 times the radius of the tool
+    /// part holding it.
+    pub zone_edge: Option<f64>,
 }
 
 impl Default for SubdivisionSettings {
@@ -91,6 +94,7 @@ impl Default for SubdivisionSettings {
             min_edge: 0.001,
             coarsen_after_s: 0.5,
             tolerance: 1e-4,
+            zone_edge: None,
         }
     }
 }

@@ -2,8 +2,10 @@
 //! into the tool — a probe finer than the mesh pressed between nodes, or the chord between two held
 //! nodes across a curved tool — a node is inserted at the deepest point (inside the triangle, or on
 //! its edge when the point is near one) and the tool takes hold of it at once. Refinement goes on,
-//! one node per tool per tick, until the surface follows the tool within the tolerance or a limit
-//! is met: depth (a new node is one deeper than its deepest corner), shortest rest edge, smallest
+//! one node per tool per tick, until the surface follows the tool within the tolerance; then the
+//! triangles around the held nodes are bisected on their longest edge down to the contact zone's
+//! edge length (`zone_edge`, by default 1.6 times the tool's radius), so that the dent, not only the
+//! contact point, is resolved. Limits: depth (a new node is one deeper than its deepest corner), shortest rest edge, smallest
 //! angle of a new triangle ([`MIN_ANGLE_DEG`]), and the reserved pool.
 //!
 //! Coarsening: once no tool has held the newest inserted node for the configured delay, it is
@@ -20,6 +22,12 @@ use crate::tool::Tool;
 
 /// Barycentric weight under which the contact point is taken to lie on the opposite edge.
 pub const EDGE_SNAP: f64 = 0.2;
+
+/// Lightest node a refinement may leave, as a fraction of the body's mean node mass at start: the
+/// paper's mass rule takes a share from the corners at every split, so a corner split again and again
+/// grows ever lighter (and faster). A floor keeps the multi-rate sub-stepping bounded (ω grows as
+/// 1/√m: at 1/64 of the mean mass, three more halvings of the step than the body needs at start).
+pub const MIN_MASS_FRACTION: f64 = 1.0 / 64.0;
 
 /// Smallest angle a refinement may create in a triangle (degrees, at rest); insertions that would
 /// go below are refused (and counted).
@@ -53,6 +61,8 @@ pub struct Refinement {
     pub counters: RefinementCounters,
     /// Tick at whose end the mesh last changed (0: never).
     pub changed_at: u64,
+    /// Lightest node mass a split may leave (kg).
+    min_mass: f64,
 }
 
 /// What to insert.
@@ -74,6 +84,7 @@ impl Refinement {
             last_held: Vec::with_capacity(POOL_NODES),
             counters: RefinementCounters::default(),
             changed_at: 0,
+            min_mass: MIN_MASS_FRACTION * body.surface_mass() / body.node_count().max(1) as f64,
         }
     }
 
@@ -93,9 +104,16 @@ impl Refinement {
     pub fn refine_at_tools(&mut self, body: &mut Body, tools: &[Tool], tick: u64, dt: f64) -> u32 {
         let mut inserted = 0;
         for (tool_index, tool) in tools.iter().enumerate() {
-            let Some((split, part)) = self.cut_split(body, tool) else {
+            let Some((split, part)) = self
+                .cut_split(body, tool)
+                .or_else(|| self.sizing_split(body, tool, tool_index as u32))
+            else {
                 continue;
             };
+            if self.too_light(body, split) {
+                self.counters.refused += 1;
+                continue;
+            }
             let result = match split {
                 Split::Face { triangle, w } => subdivide_face(
                     body,
@@ -190,6 +208,102 @@ impl Refinement {
             split
         };
         Some((split, part))
+    }
+
+    /// Whether the split would leave a node lighter than the floor.
+    fn too_light(&self, body: &Body, split: Split) -> bool {
+        let m = &body.surface.mass;
+        let check = |corners: &[u32], w: &[f64]| {
+            let first: f64 = corners
+                .iter()
+                .zip(w)
+                .map(|(&c, &wk)| wk * m[c as usize])
+                .sum();
+            let second: f64 = corners
+                .iter()
+                .zip(w)
+                .map(|(&c, &wk)| wk * wk * m[c as usize])
+                .sum();
+            let r = 1.0 / (1.0 + second / first);
+            let taken: f64 = corners
+                .iter()
+                .zip(w)
+                .map(|(&c, &wk)| r * wk * m[c as usize])
+                .sum();
+            taken < self.min_mass
+                || corners
+                    .iter()
+                    .zip(w)
+                    .any(|(&c, &wk)| (1.0 - r * wk) * m[c as usize] < self.min_mass)
+        };
+        match split {
+            Split::Face { triangle, w } => {
+                let sum: f64 = w.iter().sum();
+                check(&body.surface.triangles[triangle], &w.map(|x| x / sum))
+            }
+            Split::Edge { a, b, t } => check(&[a, b], &[1.0 - t, t]),
+        }
+    }
+
+    /// Sizing of the contact zone, once the surface follows the tool: among the triangles with a
+    /// corner the tool holds, the one with the longest rest edge, when longer than the zone edge
+    /// (`zone_edge`, or 1.6 times the radius of the tool part holding that corner), is bisected on that
+    /// edge. So the dent around a contact is meshed at about the tool's size, not only at the point.
+    fn sizing_split(
+        &mut self,
+        body: &Body,
+        tool: &Tool,
+        tool_index: u32,
+    ) -> Option<(Split, usize)> {
+        let s = &body.surface;
+        let h = &s.homologue_in_body;
+        let longest_edge = |tri: &[u32; 3]| {
+            (0..3)
+                .map(|k| {
+                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                    ((h[b as usize] - h[a as usize]).norm(), a, b)
+                })
+                .max_by(|x, y| x.0.total_cmp(&y.0))
+                .unwrap_or((0.0, tri[0], tri[1]))
+        };
+        let mut best: Option<(f64, u32, u32, usize)> = None;
+        for tri in &s.triangles {
+            let Some(&held) = tri
+                .iter()
+                .find(|&&v| s.tool_contact[v as usize].tool == tool_index)
+            else {
+                continue;
+            };
+            let part = s.tool_contact[held as usize].part as usize;
+            let target = match self.settings.zone_edge {
+                Some(edge) => edge,
+                None if part < tool.part_count => 1.6 * tool.parts_end[part].radius,
+                None => continue,
+            };
+            if tri
+                .iter()
+                .map(|&v| self.depth[v as usize])
+                .max()
+                .unwrap_or(0)
+                >= self.settings.max_depth
+            {
+                continue;
+            }
+            let (length, a, b) = longest_edge(tri);
+            if length > target.max(2.0 * self.settings.min_edge)
+                && best.is_none_or(|(l, ..)| length > l)
+            {
+                best = Some((length, a, b, part));
+            }
+        }
+        let (_, a, b, part) = best?;
+        match edge_split(body, a, b, 0.5) {
+            Some(split) => Some((split, part)),
+            None => {
+                self.counters.refused += 1;
+                None
+            }
+        }
     }
 
     /// The refinable triangle whose surface cuts deepest into the tool (beyond the tolerance), and
