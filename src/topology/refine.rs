@@ -5,8 +5,9 @@
 //! one node per tool per tick, until the surface follows the tool within the tolerance; then the
 //! triangles around the held nodes are bisected on their longest edge down to the contact zone's
 //! edge length (`zone_edge`, by default 1.6 times the tool's radius), so that the dent, not only the
-//! contact point, is resolved. Limits: depth (a new node is one deeper than its deepest corner), shortest rest edge, smallest
-//! angle of a new triangle ([`MIN_ANGLE_DEG`]), and the reserved pool.
+//! contact point, is resolved. Limits: depth (a new node is one deeper than its deepest corner),
+//! shortest rest edge, smallest angle of a new triangle ([`MIN_ANGLE_DEG`]), lightest node
+//! ([`MIN_MASS_FRACTION`]), and the reserved pool.
 //!
 //! Coarsening: once no tool has held the newest inserted node for the configured delay, it is
 //! removed (newest first, so every removal restores exactly what its insertion changed).
