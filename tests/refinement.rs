@@ -522,3 +522,38 @@ fn a_refining_session_records_and_replays_bit_for_bit() {
     assert!(text.contains("verify: OK"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_tool_leaving_the_tissue_from_inside_drags_nothing_out() {
+    // A probe that starts inside the organ (it got there without subdivision) and is pulled out
+    // through the top: the surface meets it from within, which must not insert nodes held on the
+    // wrong side of the tool.
+    let script =
+        "{ t = 0.0, position = [0.003, 0.002, 0.0] }, { t = 1.0, position = [0.003, 0.002, 0.09] }";
+    let mut world = probe_scene("subdivision = {}", script, 0.3);
+    let mut most_held = 0;
+    for _ in 0..1500 {
+        world.step();
+        most_held = most_held.max(world.tools[0].feedback.contacts);
+    }
+    let body = &world.bodies[0];
+    let held = body
+        .surface
+        .tool_contact
+        .iter()
+        .filter(|c| c.tool != palpa::contact::tool::NO_TOOL)
+        .count();
+    let force = world.tools[0].feedback.force_in_world.norm();
+    let highest = body
+        .surface
+        .position_in_world
+        .iter()
+        .map(|x| x.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    eprintln!(
+        "probe pulled out from inside: at most {most_held} contacts, {held} held at the end, force {force} N, highest node z {highest:.4} m"
+    );
+    assert_eq!(held, 0);
+    assert_eq!(force, 0.0);
+    assert!(highest < RADIUS + 0.005, "no node dragged up: {highest}");
+}

@@ -106,7 +106,7 @@ impl Refinement {
         let mut inserted = 0;
         for (tool_index, tool) in tools.iter().enumerate() {
             let Some((split, part)) = self
-                .cut_split(body, tool)
+                .cut_split(body, tool, tool_index as u32)
                 .or_else(|| self.sizing_split(body, tool, tool_index as u32))
             else {
                 continue;
@@ -185,8 +185,8 @@ impl Refinement {
 
     /// Where the surface cuts deepest into the tool: the split that puts a node there, and the tool
     /// part. Counts a refusal when a limit stops it.
-    fn cut_split(&mut self, body: &Body, tool: &Tool) -> Option<(Split, usize)> {
-        let (triangle, part) = self.deepest_cut(body, tool)?;
+    fn cut_split(&mut self, body: &Body, tool: &Tool, tool_index: u32) -> Option<(Split, usize)> {
+        let (triangle, part) = self.deepest_cut(body, tool, tool_index)?;
         let capsule = &tool.parts_end[part];
         let tri = body.surface.triangles[triangle];
         let [a, b, c] = tri.map(|v| body.surface.next_position_in_world[v as usize]);
@@ -309,7 +309,7 @@ impl Refinement {
 
     /// The refinable triangle whose surface cuts deepest into the tool (beyond the tolerance), and
     /// the tool part it cuts.
-    fn deepest_cut(&self, body: &Body, tool: &Tool) -> Option<(usize, usize)> {
+    fn deepest_cut(&self, body: &Body, tool: &Tool, tool_index: u32) -> Option<(usize, usize)> {
         let mut reach = Aabb::empty();
         let mut margin: f64 = 0.0;
         for part in &tool.parts_end[..tool.part_count] {
@@ -337,9 +337,26 @@ impl Refinement {
             {
                 continue;
             }
+            let held_here = held_from_outside(body, tool, tool_index, tri).is_some();
             for (k, part) in tool.parts_end[..tool.part_count].iter().enumerate() {
                 let cut = part.radius - segment_triangle_distance(&part.a, &part.b, &a, &b, &c);
-                if cut > self.settings.tolerance && deepest.is_none_or(|(d, _, _)| cut > d) {
+                if cut <= self.settings.tolerance || deepest.is_some_and(|(d, _, _)| cut <= d) {
+                    continue;
+                }
+                // A cut growing from a contact the tool holds from outside, or one by a tool that was
+                // on the triangle's outer side at the start of the tick. A tool inside the tissue (it
+                // slipped in where a split was refused) meets the surface from within on its way
+                // out: a node inserted there would be held on the wrong side of the tool and dragged.
+                if !held_here {
+                    let x0 = &s.position_in_world;
+                    let [a0, b0, c0] = tri.map(|v| x0[v as usize]);
+                    let outward = (b0 - a0).cross(&(c0 - a0));
+                    let axis = tool.parts_start[k].closest_on_segment(&((a0 + b0 + c0) / 3.0));
+                    if (axis - a0).dot(&outward) <= 0.0 {
+                        continue;
+                    }
+                }
+                {
                     deepest = Some((cut, t, k));
                 }
             }
@@ -375,6 +392,26 @@ impl Refinement {
         }
         removed
     }
+}
+
+/// A corner of `tri` the tool holds from outside: the tool's outward normal at the corner (from its
+/// axis to the node) points into the tissue, against the triangle's outward normal. (A tool that
+/// pushes the surface from inside — one leaving tissue it slipped into — holds nodes the other way;
+/// refining around those would tent the surface out after it.)
+fn held_from_outside(body: &Body, tool: &Tool, tool_index: u32, tri: &[u32; 3]) -> Option<u32> {
+    let s = &body.surface;
+    let x = &s.next_position_in_world;
+    let [a, b, c] = tri.map(|v| x[v as usize]);
+    let outward = (b - a).cross(&(c - a));
+    tri.iter().copied().find(|&v| {
+        let contact = s.tool_contact[v as usize];
+        if contact.tool != tool_index || contact.part as usize >= tool.part_count {
+            return false;
+        }
+        let p = x[v as usize];
+        let part = &tool.parts_end[contact.part as usize];
+        (p - part.closest_on_segment(&p)).dot(&outward) < 0.0
+    })
 }
 
 /// Where to insert for a contact at weights `w` in `triangle`: inside it, or on the edge the point
