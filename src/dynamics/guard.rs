@@ -122,20 +122,31 @@ impl Guard {
     }
 
     fn diagnose(&self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
-        if !body.is_finite() {
+        // One pass without early exit (it vectorises): the largest squared speed and stretch, and a
+        // sum that turns non-finite if any position or velocity is.
+        let s = &body.surface;
+        let (mut speed2, mut stretch2, mut sum) = (0.0f64, 0.0f64, 0.0f64);
+        for ((v, x), h) in s
+            .velocity_in_world
+            .iter()
+            .zip(&s.position_in_world)
+            .zip(&s.homologue_in_world)
+        {
+            let v2 = v.norm_squared();
+            let s2 = (x - h).norm_squared();
+            speed2 = speed2.max(v2);
+            stretch2 = stretch2.max(s2);
+            sum += v2 + s2;
+        }
+        if !sum.is_finite() || !body.rigid.is_finite() {
             return Some(GuardCause::NonFinite);
         }
-        let s = &body.surface;
+        if speed2 > MAX_SPEED * MAX_SPEED {
+            return Some(GuardCause::Speed);
+        }
         let max_stretch = MAX_STRETCH * self.size;
-        for i in 0..s.mass.len() {
-            if s.velocity_in_world[i].norm_squared() > MAX_SPEED * MAX_SPEED {
-                return Some(GuardCause::Speed);
-            }
-            if (s.position_in_world[i] - s.homologue_in_world[i]).norm_squared()
-                > max_stretch * max_stretch
-            {
-                return Some(GuardCause::Stretch);
-            }
+        if stretch2 > max_stretch * max_stretch {
+            return Some(GuardCause::Stretch);
         }
         if let Some(e) = energy
             && e > self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J
