@@ -284,6 +284,11 @@ fn bad_subdivision_settings_are_errors_with_their_place() {
         e.starts_with("bad.toml:4:28: `min_edge` must be a finite number > 0"),
         "{e}"
     );
+    let e = error_of(&format!("{BODY}subdivision = {{ zone_edge = 0.0 }}\n"));
+    assert!(
+        e.starts_with("bad.toml:4:29: `zone_edge` must be a finite number > 0"),
+        "{e}"
+    );
     let e = error_of(&format!("{BODY}subdivision = {{ depth = 3 }}\n"));
     assert!(e.starts_with("bad.toml:4:"), "{e}");
     assert!(e.contains("unknown field `depth`"), "{e}");
