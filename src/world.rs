@@ -12,7 +12,8 @@ use crate::collision::obstacle::Obstacle;
 use crate::contact::bodies::{BodyContactCounters, BodyContactScratch, resolve_body_collisions};
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
-    capture_new_contacts, detect_face_contacts, hold_contact_nodes, push_out_of_tools,
+    capture_among, capture_broad_phase, face_broad_phase, face_contacts_among, hold_contact_nodes,
+    push_out_of_tools,
 };
 use crate::dynamics::Integrator;
 use crate::dynamics::forces::accumulate_body_forces;
@@ -131,8 +132,8 @@ pub struct World {
     pub guards: Vec<Guard>,
     /// Adaptive subdivision state of each body (`None` where the scene leaves it off).
     pub refinements: Vec<Option<Refinement>>,
-    /// Broad-phase scratch of the face-contact detection, one byte per node of each body.
-    face_outcodes: Vec<Vec<u8>>,
+    /// Broad-phase scratch of the tool contact detection, per body.
+    broad: Vec<BroadScratch>,
 }
 
 /// The integrator of one body with its scratch memory.
@@ -170,6 +171,14 @@ impl BodySolver {
     }
 }
 
+/// Candidates of the tool broad phase, per body (reserved for its node and triangle capacity).
+#[derive(Clone, Debug, Default)]
+struct BroadScratch {
+    outcodes: Vec<u8>,
+    nodes: Vec<u32>,
+    triangles: Vec<u32>,
+}
+
 /// The stages of a step, as [`World::step_profiled`] times them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
@@ -181,8 +190,11 @@ pub enum Stage {
     Contact,
     /// Free nodes integrated (symplectic, multi-rate or implicit).
     Integration,
-    /// Continuous detection against the tools: node trajectories (swept-box broad phase, then
-    /// conservative advancement) and triangles between nodes.
+    /// Broad phase against the tools: node trajectories against each tool's swept box, triangles by
+    /// the corners' outcodes.
+    BroadPhase,
+    /// Continuous detection against the tools of what the broad phase kept: node trajectories
+    /// (conservative advancement, the node joins the contact zone) and triangles between nodes.
     ToolCcd,
     /// Adaptive subdivision and coarsening.
     Subdivision,
@@ -196,11 +208,12 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in step order.
-    pub const ALL: [Stage; 9] = [
+    pub const ALL: [Stage; 10] = [
         Stage::Tools,
         Stage::Forces,
         Stage::Contact,
         Stage::Integration,
+        Stage::BroadPhase,
         Stage::ToolCcd,
         Stage::Subdivision,
         Stage::BodyContact,
@@ -215,6 +228,7 @@ impl Stage {
             Stage::Forces => "forces",
             Stage::Contact => "contact",
             Stage::Integration => "integration",
+            Stage::BroadPhase => "broad_phase",
             Stage::ToolCcd => "tool_ccd",
             Stage::Subdivision => "subdivision",
             Stage::BodyContact => "body_contact",
@@ -241,7 +255,7 @@ impl StageClock for NoClock {
 #[derive(Clone, Debug, Default)]
 pub struct StepProfile {
     /// Seconds per stage, indexed like [`Stage::ALL`].
-    pub seconds: [f64; 9],
+    pub seconds: [f64; 10],
     /// Steps profiled.
     pub steps: u64,
     current: Option<(Stage, std::time::Instant)>,
@@ -290,7 +304,7 @@ impl World {
             solvers: Vec::new(),
             guards: Vec::new(),
             refinements: Vec::new(),
-            face_outcodes: Vec::new(),
+            broad: Vec::new(),
         };
         world.assemble();
         world
@@ -383,10 +397,17 @@ impl World {
             .iter()
             .map(|b| solver_for(b, world_integrator, dt))
             .collect();
-        self.face_outcodes = self
+        self.broad = self
             .bodies
             .iter()
-            .map(|b| Vec::with_capacity(b.mesh_capacity().0))
+            .map(|b| {
+                let (nodes, triangles) = b.mesh_capacity();
+                BroadScratch {
+                    outcodes: Vec::with_capacity(nodes),
+                    nodes: Vec::with_capacity(nodes),
+                    triangles: Vec::with_capacity(triangles),
+                }
+            })
             .collect();
         let gravity = self.params.gravity;
         self.guards = self
@@ -439,12 +460,12 @@ impl World {
         }
         let systems = self.systems;
         let mut topology_changed = false;
-        for (((body, solver), refinement), outcodes) in self
+        for (((body, solver), refinement), broad) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
-            .zip(self.face_outcodes.iter_mut())
+            .zip(self.broad.iter_mut())
         {
             clock.enter(Stage::Forces);
             accumulate_body_forces(body, &gravity);
@@ -462,9 +483,13 @@ impl World {
                 BodySolver::Implicit(i) => i.integrate(body, dt),
             }
             if systems.tool_contact {
-                clock.enter(Stage::ToolCcd);
-                counters.tool_captures +=
-                    capture_new_contacts(&mut body.surface, &mut self.tools, dt);
+                for (tool_index, tool) in self.tools.iter_mut().enumerate() {
+                    clock.enter(Stage::BroadPhase);
+                    capture_broad_phase(&body.surface, tool, &mut broad.nodes);
+                    clock.enter(Stage::ToolCcd);
+                    counters.tool_captures +=
+                        capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
+                }
                 clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {
                     let inserted = refinement.refine_at_tools(body, &self.tools, self.tick + 1, dt);
@@ -474,9 +499,18 @@ impl World {
                         topology_changed = true;
                     }
                 }
-                clock.enter(Stage::ToolCcd);
-                counters.tool_face_contacts +=
-                    detect_face_contacts(&body.surface, &self.tools, outcodes);
+                for tool in &self.tools {
+                    clock.enter(Stage::BroadPhase);
+                    face_broad_phase(
+                        &body.surface,
+                        tool,
+                        &mut broad.outcodes,
+                        &mut broad.triangles,
+                    );
+                    clock.enter(Stage::ToolCcd);
+                    counters.tool_face_contacts +=
+                        face_contacts_among(&body.surface, tool, &broad.triangles);
+                }
             }
             clock.enter(Stage::Contact);
             if systems.obstacle_contact {

@@ -178,70 +178,113 @@ pub fn swept_box(tool: &Tool) -> Aabb {
 }
 
 /// Step 3: continuous detection of every free node's trajectory against every tool; returns how many
-/// nodes joined a contact zone. Contact nodes of step 1 are not touched.
+/// nodes joined a contact zone. Contact nodes of step 1 are not touched. (The world step runs the
+/// same in two phases, [`capture_broad_phase`] then [`capture_among`], to time them apart.)
 pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) -> u32 {
     let mut captured = 0;
     for (tool_index, tool) in tools.iter_mut().enumerate() {
         let sweep = swept_box(tool);
         for i in 0..surface.position_in_world.len() {
-            if surface.tool_contact[i].tool != NO_TOOL {
-                continue;
-            }
-            let start = surface.position_in_world[i];
-            let predicted = surface.next_position_in_world[i];
-            if !sweep.overlaps_segment(&start, &predicted) {
-                continue;
-            }
-            // A node that starts the tick touching the tool (one just released, or resting against
-            // it) joins the contact zone only if the tool ends up pushing into it; otherwise it is
-            // separating and stays free. Every other node joins at its first touch.
-            let touching_at_start = (0..tool.part_count)
-                .any(|k| tool.parts_start[k].signed_distance(&start) <= CONTACT_TOLERANCE);
-            if touching_at_start
-                && (0..tool.part_count)
-                    .all(|k| tool.parts_end[k].signed_distance(&predicted) >= 0.0)
+            if surface.tool_contact[i].tool == NO_TOOL
+                && sweep.overlaps_segment(
+                    &surface.position_in_world[i],
+                    &surface.next_position_in_world[i],
+                )
             {
-                continue;
+                captured += try_capture(surface, tool_index, tool, i, dt) as u32;
             }
-            // Earliest touch over the tool's parts.
-            let mut first: Option<(f64, usize)> = None;
-            for k in 0..tool.part_count {
-                if let Some(t) = time_of_impact_point_capsule(
-                    &start,
-                    &predicted,
-                    &tool.parts_start[k],
-                    &tool.parts_end[k],
-                    CONTACT_TOLERANCE,
-                ) && first.is_none_or(|(best, _)| t < best)
-                {
-                    first = Some((t, k));
-                }
-            }
-            let Some((t, part)) = first else { continue };
-            // Where on the tool it touched, carried to the end of the tick with the tool.
-            let at_touch = start.lerp(&predicted, t);
-            let capsule = lerp_capsule(&tool.parts_start[part], &tool.parts_end[part], t);
-            let toward = (predicted - start)
-                .try_normalize(1e-15)
-                .map_or(Vec3::z(), |d| -d);
-            let (touch_point, _) = capsule.project_to_surface(&at_touch, &toward);
-            let pose = pose_between(&tool.previous_pose, &tool.pose, t);
-            let carried = tool.pose.to_world(&pose.to_tool(&touch_point));
-            let (end, _) = tool.parts_end[part].project_to_surface(&carried, &toward);
-            surface.tool_contact[i] = ToolContact {
-                tool: tool_index as u32,
-                part: part as u32,
-                point_in_tool: tool.pose.to_tool(&end),
-            };
-            surface.next_position_in_world[i] = end;
-            surface.velocity_in_world[i] = (end - start) / dt;
-            // It touched during the tick and is held from its end on: it counts as a contact now,
-            // and its force reaches the device from the next tick, when the tool holds it.
-            add_feedback(tool, &end, &Vec3::zeros(), 0.0, 0.0, false);
-            captured += 1;
         }
     }
     captured
+}
+
+/// Broad phase of the capture against one tool: the free nodes whose trajectory over the tick
+/// overlaps the tool's swept box, in index order, into `out` (allocation-free within its capacity).
+pub fn capture_broad_phase(surface: &Surface, tool: &Tool, out: &mut Vec<u32>) {
+    let sweep = swept_box(tool);
+    out.clear();
+    let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
+    for i in 0..x0.len() {
+        if surface.tool_contact[i].tool == NO_TOOL && sweep.overlaps_segment(&x0[i], &x1[i]) {
+            out.push(i as u32);
+        }
+    }
+}
+
+/// Narrow phase of the capture against tool `tool_index`: continuous detection of the candidates'
+/// trajectories; returns how many joined the contact zone.
+pub fn capture_among(
+    surface: &mut Surface,
+    tool_index: usize,
+    tool: &mut Tool,
+    candidates: &[u32],
+    dt: f64,
+) -> u32 {
+    candidates
+        .iter()
+        .map(|&i| try_capture(surface, tool_index, tool, i as usize, dt) as u32)
+        .sum()
+}
+
+/// Continuous detection of node `i`'s trajectory against the tool; on a touch the node joins the
+/// contact zone where it touched, carried to the end of the tick.
+fn try_capture(
+    surface: &mut Surface,
+    tool_index: usize,
+    tool: &mut Tool,
+    i: usize,
+    dt: f64,
+) -> bool {
+    let start = surface.position_in_world[i];
+    let predicted = surface.next_position_in_world[i];
+    // A node that starts the tick touching the tool (one just released, or resting against it)
+    // joins the contact zone only if the tool ends up pushing into it; otherwise it is separating
+    // and stays free. Every other node joins at its first touch.
+    let touching_at_start = (0..tool.part_count)
+        .any(|k| tool.parts_start[k].signed_distance(&start) <= CONTACT_TOLERANCE);
+    if touching_at_start
+        && (0..tool.part_count).all(|k| tool.parts_end[k].signed_distance(&predicted) >= 0.0)
+    {
+        return false;
+    }
+    // Earliest touch over the tool's parts.
+    let mut first: Option<(f64, usize)> = None;
+    for k in 0..tool.part_count {
+        if let Some(t) = time_of_impact_point_capsule(
+            &start,
+            &predicted,
+            &tool.parts_start[k],
+            &tool.parts_end[k],
+            CONTACT_TOLERANCE,
+        ) && first.is_none_or(|(best, _)| t < best)
+        {
+            first = Some((t, k));
+        }
+    }
+    let Some((t, part)) = first else {
+        return false;
+    };
+    // Where on the tool it touched, carried to the end of the tick with the tool.
+    let at_touch = start.lerp(&predicted, t);
+    let capsule = lerp_capsule(&tool.parts_start[part], &tool.parts_end[part], t);
+    let toward = (predicted - start)
+        .try_normalize(1e-15)
+        .map_or(Vec3::z(), |d| -d);
+    let (touch_point, _) = capsule.project_to_surface(&at_touch, &toward);
+    let pose = pose_between(&tool.previous_pose, &tool.pose, t);
+    let carried = tool.pose.to_world(&pose.to_tool(&touch_point));
+    let (end, _) = tool.parts_end[part].project_to_surface(&carried, &toward);
+    surface.tool_contact[i] = ToolContact {
+        tool: tool_index as u32,
+        part: part as u32,
+        point_in_tool: tool.pose.to_tool(&end),
+    };
+    surface.next_position_in_world[i] = end;
+    surface.velocity_in_world[i] = (end - start) / dt;
+    // It touched during the tick and is held from its end on: it counts as a contact now, and its
+    // force reaches the device from the next tick, when the tool holds it.
+    add_feedback(tool, &end, &Vec3::zeros(), 0.0, 0.0, false);
+    true
 }
 
 /// Step 3b: detection of the tool touching a face or an edge *between* nodes — a probe finer than the
@@ -249,47 +292,82 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
 /// tool's capsules against the triangle's motion over the tick (both ways: a tool end through the
 /// face, the tool's axis across the triangle's edges). Returns how many triangles the tool touches
 /// this way. The paper's response, a node inserted at the touch point with its mass taken from the
-/// corners, comes with adaptive subdivision; until then these contacts are counted, and the nodes
-/// around them still meet the tool through [`capture_new_contacts`].
+/// corners, is adaptive subdivision (`crate::topology::refine`); without it these contacts are
+/// counted, and the nodes around them still meet the tool through [`capture_new_contacts`].
 ///
 /// `outcodes` is scratch memory (one byte per node; give it the capacity of the node count and the
 /// call allocates nothing): the broad phase codes each node's trajectory against the tool's swept box
-/// once, and a triangle is looked at only if its three corners' codes share no side.
+/// once, and a triangle is looked at only if its three corners' codes share no side. (The world step
+/// runs the same in two phases, [`face_broad_phase`] then [`face_contacts_among`].)
 pub fn detect_face_contacts(surface: &Surface, tools: &[Tool], outcodes: &mut Vec<u8>) -> u32 {
     let mut touched = 0;
     for tool in tools {
-        let sweep = swept_box(tool);
-        let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
-        outcodes.clear();
-        outcodes.extend(x0.iter().zip(x1).map(|(p, q)| sweep.outcode(p, q)));
-        for &[a, b, c] in &surface.triangles {
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            if outcodes[a] & outcodes[b] & outcodes[c] != 0 {
-                continue;
+        code_trajectories(surface, tool, outcodes);
+        for tri in &surface.triangles {
+            if face_candidate(surface, outcodes, tri) {
+                touched += face_touched(surface, tool, tri) as u32;
             }
-            let corners = [a, b, c];
-            if corners
-                .iter()
-                .any(|&v| surface.tool_contact[v].tool != NO_TOOL)
-            {
-                continue;
-            }
-            let start = [x0[a], x0[b], x0[c]];
-            let end = [x1[a], x1[b], x1[c]];
-            let hit = (0..tool.part_count).any(|k| {
-                time_of_impact_capsule_triangle(
-                    &tool.parts_start[k],
-                    &tool.parts_end[k],
-                    &start,
-                    &end,
-                    CONTACT_TOLERANCE,
-                )
-                .is_some()
-            });
-            touched += hit as u32;
         }
     }
     touched
+}
+
+/// Broad phase of the face detection against one tool: the triangles, none of whose corners is held,
+/// whose swept box may meet the tool's, in index order, into `out` (`outcodes` is scratch; both
+/// allocation-free within their capacity).
+pub fn face_broad_phase(
+    surface: &Surface,
+    tool: &Tool,
+    outcodes: &mut Vec<u8>,
+    out: &mut Vec<u32>,
+) {
+    code_trajectories(surface, tool, outcodes);
+    out.clear();
+    for (t, tri) in surface.triangles.iter().enumerate() {
+        if face_candidate(surface, outcodes, tri) {
+            out.push(t as u32);
+        }
+    }
+}
+
+/// Narrow phase of the face detection: how many of the candidate triangles the tool touches.
+pub fn face_contacts_among(surface: &Surface, tool: &Tool, candidates: &[u32]) -> u32 {
+    candidates
+        .iter()
+        .map(|&t| face_touched(surface, tool, &surface.triangles[t as usize]) as u32)
+        .sum()
+}
+
+fn code_trajectories(surface: &Surface, tool: &Tool, outcodes: &mut Vec<u8>) {
+    let sweep = swept_box(tool);
+    let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
+    outcodes.clear();
+    outcodes.extend(x0.iter().zip(x1).map(|(p, q)| sweep.outcode(p, q)));
+}
+
+fn face_candidate(surface: &Surface, outcodes: &[u8], &[a, b, c]: &[u32; 3]) -> bool {
+    let (a, b, c) = (a as usize, b as usize, c as usize);
+    outcodes[a] & outcodes[b] & outcodes[c] == 0
+        && [a, b, c]
+            .iter()
+            .all(|&v| surface.tool_contact[v].tool == NO_TOOL)
+}
+
+fn face_touched(surface: &Surface, tool: &Tool, &[a, b, c]: &[u32; 3]) -> bool {
+    let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
+    let (a, b, c) = (a as usize, b as usize, c as usize);
+    let start = [x0[a], x0[b], x0[c]];
+    let end = [x1[a], x1[b], x1[c]];
+    (0..tool.part_count).any(|k| {
+        time_of_impact_capsule_triangle(
+            &tool.parts_start[k],
+            &tool.parts_end[k],
+            &start,
+            &end,
+            CONTACT_TOLERANCE,
+        )
+        .is_some()
+    })
 }
 
 /// Step 4: moves any node left inside a tool capsule at the end of the tick onto its surface; returns
