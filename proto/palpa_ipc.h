@@ -114,7 +114,9 @@ typedef struct {
  *
  * One message per body per display tick. A display that joins late waits for a keyframe (sent at
  * start, every few seconds, and on PALPA_CONTROL_KEYFRAME), then applies deltas whose base_tick
- * matches the tick of the state it holds.
+ * matches the tick of the state it holds. A body with adaptive subdivision changes its vertices and
+ * triangles at contact: its next message is then a keyframe with the new counts (a delta never
+ * changes vertex_count; a display sizes its buffers from each keyframe).
  */
 typedef struct {
     uint32_t kind;            /* 0 keyframe, 1 delta */
