@@ -187,18 +187,7 @@ fn pressed_ball(subdivisions: u32, subdivision: &str) -> World {
     );
     let scene = parse_scene(&text, "bench.toml", Path::new(".")).expect("bench scene");
     let mut world = World::from_scene(&scene);
-    let s = &mut world.bodies[0].surface;
-    let mut areas = vec![0.0; s.mass.len()];
-    for t in &s.triangles {
-        let [a, b, c] = t.map(|v| s.homologue_in_body[v as usize]);
-        for v in t {
-            areas[*v as usize] += 0.5 * (b - a).cross(&(c - a)).norm() / 3.0;
-        }
-    }
-    for (i, a) in areas.iter().enumerate() {
-        s.link_stiffness[i] = 5e4 * a;
-        s.link_damping[i] = 200.0 * a;
-    }
+    world.bodies[0].set_links_per_area(5e4, 200.0);
     world.add_tool(Tool::new(
         "probe",
         ToolShape::Sphere { radius: 0.005 },

@@ -463,8 +463,7 @@ fn serve(args: ServeArgs) -> Result<()> {
 
 #[cfg(feature = "ipc")]
 fn demo(duration: f64) -> Result<()> {
-    use palpa::device::model::PRESETS;
-    use palpa::device::run::{DeviceOptions, HandPath, Motion, run_device};
+    use palpa::device::run::{DeviceOptions, run_device};
     use palpa::ipc::services::{create_node, stats_service};
     use std::io::{IsTerminal, Write};
     use std::process::{Command as Process, Stdio};
@@ -488,19 +487,7 @@ fn demo(duration: f64) -> Result<()> {
     let stats = stats_service(&node, &prefix)
         .and_then(|f| Ok(f.subscriber_builder().create()?))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let options = DeviceOptions {
-        prefix: prefix.clone(),
-        tool: "probe".into(),
-        spec: PRESETS[0],
-        path: HandPath::BuiltIn {
-            motion: Motion::Palpate,
-            at: palpa::Vec3::new(0.0, 0.0, 0.0645),
-            seed: 1,
-        },
-        duration,
-        lockstep: false,
-        keep_trace: false,
-    };
+    let options = DeviceOptions::palpating_default_organ(&prefix, duration);
     let terminal = std::io::stdout().is_terminal();
     let mut misses = 0u64;
     let result = run_device(&options, Arc::new(AtomicBool::new(false)), |status| {

@@ -12,20 +12,6 @@ use palpa::world::World;
 
 const RADIUS: f64 = 0.05;
 
-/// Lumped rest area of every node (a third of each triangle around it).
-fn lumped_areas(world: &World) -> Vec<f64> {
-    let s = &world.bodies[0].surface;
-    let mut areas = vec![0.0; s.mass.len()];
-    for t in &s.triangles {
-        let [a, b, c] = t.map(|v| s.homologue_in_body[v as usize]);
-        let area = 0.5 * (b - a).cross(&(c - a)).norm();
-        for v in t {
-            areas[*v as usize] += area / 3.0;
-        }
-    }
-    areas
-}
-
 /// A fixed ball (icosphere of the given level) whose mechanics do not depend on its mesh: surface
 /// mass spread by area, the same spring constant on every edge (a triangle lattice's membrane modulus
 /// does not depend on its edge length), no friction, and links of stiffness `kappa` (N/m³) and
@@ -48,12 +34,7 @@ fn ball(level: u32, subdivision: &str, kappa: f64, probe_radius: f64) -> World {
         "#
     ));
     let mut world = World::from_scene(&scene);
-    let areas = lumped_areas(&world);
-    let s = &mut world.bodies[0].surface;
-    for (i, a) in areas.iter().enumerate() {
-        s.link_stiffness[i] = kappa * a;
-        s.link_damping[i] = kappa / 250.0 * a;
-    }
+    world.bodies[0].set_links_per_area(kappa, kappa / 250.0);
     let probe = Tool::new(
         "probe",
         ToolShape::Sphere {

@@ -123,6 +123,71 @@ impl Edges {
     pub fn is_empty(&self) -> bool {
         self.a.is_empty()
     }
+
+    /// Appends an edge spring: ends, rest length (m), stiffness (N/m), damping (N·s/m).
+    pub fn push(&mut self, a: u32, b: u32, rest_length: f64, stiffness: f64, damping: f64) {
+        self.a.push(a);
+        self.b.push(b);
+        self.rest_length.push(rest_length);
+        self.stiffness.push(stiffness);
+        self.damping.push(damping);
+    }
+
+    /// Removes the last edge spring.
+    pub fn pop(&mut self) {
+        self.a.pop();
+        self.b.pop();
+        self.rest_length.pop();
+        self.stiffness.pop();
+        self.damping.pop();
+    }
+
+    /// Reserves room for `additional` more edges in every array.
+    pub fn reserve(&mut self, additional: usize) {
+        self.a.reserve(additional);
+        self.b.reserve(additional);
+        self.rest_length.reserve(additional);
+        self.stiffness.reserve(additional);
+        self.damping.reserve(additional);
+    }
+}
+
+impl Surface {
+    /// Reserves room for `additional` more nodes in every per-node array.
+    pub fn reserve_nodes(&mut self, additional: usize) {
+        self.position_in_world.reserve(additional);
+        self.next_position_in_world.reserve(additional);
+        self.velocity_in_world.reserve(additional);
+        self.force_in_world.reserve(additional);
+        self.mass.reserve(additional);
+        self.inverse_mass.reserve(additional);
+        self.air_damping.reserve(additional);
+        self.homologue_in_body.reserve(additional);
+        self.homologue_in_world.reserve(additional);
+        self.link_stiffness.reserve(additional);
+        self.link_damping.reserve(additional);
+        self.tool_contact.reserve(additional);
+        self.stiffness_diagonal.reserve(additional);
+        self.damping_diagonal.reserve(additional);
+    }
+
+    /// Removes the last node from every per-node array (its triangles and edges are the caller's).
+    pub fn pop_node(&mut self) {
+        self.position_in_world.pop();
+        self.next_position_in_world.pop();
+        self.velocity_in_world.pop();
+        self.force_in_world.pop();
+        self.mass.pop();
+        self.inverse_mass.pop();
+        self.air_damping.pop();
+        self.homologue_in_body.pop();
+        self.homologue_in_world.pop();
+        self.link_stiffness.pop();
+        self.link_damping.pop();
+        self.tool_contact.pop();
+        self.stiffness_diagonal.pop();
+        self.damping_diagonal.pop();
+    }
 }
 
 /// One deformable body.
@@ -208,11 +273,7 @@ impl Body {
         for [a, b] in mesh.edges() {
             let rest =
                 (mesh.positions_in_body[b as usize] - mesh.positions_in_body[a as usize]).norm();
-            edges.a.push(a);
-            edges.b.push(b);
-            edges.rest_length.push(rest);
-            edges.stiffness.push(params.surface_stiffness);
-            edges.damping.push(params.surface_damping);
+            edges.push(a, b, rest, params.surface_stiffness, params.surface_damping);
         }
 
         let inertia_in_body = if mesh.triangles.is_empty() || mesh.signed_volume() <= 0.0 {
@@ -268,6 +329,33 @@ impl Body {
             self.node_count() + room,
             self.surface.triangles.len() + 2 * room,
         )
+    }
+
+    /// Lumped rest area of every node: a third of each triangle around it, from the homologues (m²).
+    pub fn lumped_rest_areas(&self) -> Vec<f64> {
+        let s = &self.surface;
+        let mut areas = vec![0.0; s.homologue_in_body.len()];
+        for t in &s.triangles {
+            let [a, b, c] = t.map(|v| s.homologue_in_body[v as usize]);
+            let area = 0.5 * (b - a).cross(&(c - a)).norm();
+            for v in t {
+                areas[*v as usize] += area / 3.0;
+            }
+        }
+        areas
+    }
+
+    /// Gives every node a link of `stiffness` (N/m³) and `damping` (N·s/m³) per unit of its lumped
+    /// rest area, so that the elastic foundation does not depend on the mesh. Call
+    /// [`World::reassemble`](crate::world::World::reassemble) afterwards on a body already in a world.
+    pub fn set_links_per_area(&mut self, stiffness: f64, damping: f64) {
+        let areas = self.lumped_rest_areas();
+        let s = &mut self.surface;
+        for (i, a) in areas.iter().enumerate() {
+            s.link_stiffness[i] = stiffness * a;
+            s.link_damping[i] = damping * a;
+        }
+        self.refresh_diagonals();
     }
 
     /// Recomputes [`Surface::stiffness_diagonal`] and [`Surface::damping_diagonal`] (allocation-free

@@ -65,6 +65,26 @@ pub struct DeviceOptions {
     pub keep_trace: bool,
 }
 
+impl DeviceOptions {
+    /// The demo's device: a Geomagic Touch palpating the top of the embedded default organ through
+    /// its tool `probe`, for `duration` seconds (`palpa demo`, `palpa-bench latency`).
+    pub fn palpating_default_organ(prefix: &str, duration: f64) -> Self {
+        Self {
+            prefix: prefix.to_string(),
+            tool: "probe".into(),
+            spec: crate::device::model::PRESETS[0],
+            path: HandPath::BuiltIn {
+                motion: Motion::Palpate,
+                at: Vec3::new(0.0, 0.0, 0.0645),
+                seed: 1,
+            },
+            duration,
+            lockstep: false,
+            keep_trace: false,
+        }
+    }
+}
+
 /// One row of the device trace.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceRow {

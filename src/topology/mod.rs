@@ -227,29 +227,9 @@ impl InsertionLog {
 /// Reserves room in every per-node, per-edge and per-triangle array of `body` for [`POOL_NODES`]
 /// insertions, so that subdividing afterwards allocates nothing.
 pub fn reserve_for_subdivision(body: &mut Body) {
-    let n = POOL_NODES;
-    let s = &mut body.surface;
-    s.position_in_world.reserve(n);
-    s.next_position_in_world.reserve(n);
-    s.velocity_in_world.reserve(n);
-    s.force_in_world.reserve(n);
-    s.mass.reserve(n);
-    s.inverse_mass.reserve(n);
-    s.air_damping.reserve(n);
-    s.homologue_in_body.reserve(n);
-    s.homologue_in_world.reserve(n);
-    s.link_stiffness.reserve(n);
-    s.link_damping.reserve(n);
-    s.tool_contact.reserve(n);
-    s.stiffness_diagonal.reserve(n);
-    s.damping_diagonal.reserve(n);
-    s.triangles.reserve(2 * n);
-    let e = &mut body.edges;
-    e.a.reserve(3 * n);
-    e.b.reserve(3 * n);
-    e.rest_length.reserve(3 * n);
-    e.stiffness.reserve(3 * n);
-    e.damping.reserve(3 * n);
+    body.surface.reserve_nodes(POOL_NODES);
+    body.surface.triangles.reserve(2 * POOL_NODES);
+    body.edges.reserve(3 * POOL_NODES);
 }
 
 /// The edge between `a` and `b`, if any.
@@ -448,12 +428,7 @@ fn append_node(
 
 fn push_edge(body: &mut Body, entry: &mut Insertion, a: u32, b: u32, k: f64, c: f64) {
     let rest = rest_length(body, a, b);
-    let e = &mut body.edges;
-    e.a.push(a);
-    e.b.push(b);
-    e.rest_length.push(rest);
-    e.stiffness.push(k);
-    e.damping.push(c);
+    body.edges.push(a, b, rest, k, c);
     entry.added_edges += 1;
 }
 
@@ -721,25 +696,10 @@ pub fn coarsen_last(body: &mut Body, log: &mut InsertionLog) -> Option<u32> {
     {
         s.triangles[t as usize] = old;
     }
-    s.position_in_world.pop();
-    s.next_position_in_world.pop();
-    s.velocity_in_world.pop();
-    s.force_in_world.pop();
-    s.mass.pop();
-    s.inverse_mass.pop();
-    s.air_damping.pop();
-    s.homologue_in_body.pop();
-    s.homologue_in_world.pop();
-    s.link_stiffness.pop();
-    s.link_damping.pop();
-    s.tool_contact.pop();
+    s.pop_node();
     let e = &mut body.edges;
     for _ in 0..entry.added_edges {
-        e.a.pop();
-        e.b.pop();
-        e.rest_length.pop();
-        e.stiffness.pop();
-        e.damping.pop();
+        e.pop();
     }
     for &(k, (a, b, rest, stiffness, damping)) in entry.replaced_edges[..entry.replaced_edge_count]
         .iter()

@@ -174,8 +174,7 @@ fn histogram_percentile(bins: &[(usize, u64)], q: f64) -> f64 {
 }
 
 fn latency(args: LatencyArgs) -> Result<()> {
-    use palpa::device::model::PRESETS;
-    use palpa::device::run::{DeviceOptions, HandPath, Motion, run_device};
+    use palpa::device::run::{DeviceOptions, run_device};
     use std::sync::Arc;
     use std::sync::atomic::AtomicBool;
 
@@ -206,19 +205,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
         .stderr(Stdio::piped())
         .spawn()
         .context("cannot start palpa serve")?;
-    let options = DeviceOptions {
-        prefix: prefix.clone(),
-        tool: "probe".into(),
-        spec: PRESETS[0],
-        path: HandPath::BuiltIn {
-            motion: Motion::Palpate,
-            at: palpa::Vec3::new(0.0, 0.0, 0.0645),
-            seed: 1,
-        },
-        duration,
-        lockstep: false,
-        keep_trace: false,
-    };
+    let options = DeviceOptions::palpating_default_organ(&prefix, duration);
     let device = run_device(&options, Arc::new(AtomicBool::new(false)), |_| {});
     // SAFETY: kill(2) on our own child.
     unsafe {
