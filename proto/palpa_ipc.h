@@ -39,7 +39,10 @@ typedef struct {
 /* Feedback flags. */
 #define PALPA_FEEDBACK_STALE      1u  /* disconnected: no fresh pose within the timeout; force is 0 */
 #define PALPA_FEEDBACK_CLAMPED    2u  /* force scaled down to the tool's max_force */
-#define PALPA_FEEDBACK_DIVERGED   4u  /* the divergence guard acted this tick */
+#define PALPA_FEEDBACK_DIVERGED   4u  /* the divergence guard restored a body (any body, not only one
+                                         this tool touches) during the tick that computed this
+                                         feedback, or the force/torque was not finite and is sent as
+                                         0; set on that tick's feedback of every tool */
 #define PALPA_FEEDBACK_REJECTED   8u  /* the newest pose was rejected; the last good one was used */
 
 /* service "<prefix>/tool/<tool name>/feedback", iceoryx2 type name "palpa_tool_feedback_v1" */
@@ -83,7 +86,9 @@ typedef struct {
     double   stability_margin;      /* smallest over bodies: explicit-scheme omega*dt limit minus the
                                        worst node's omega*dt (negative: multirate/implicit needed) */
     uint64_t guard_events;          /* total: times the divergence guard restored a body */
-} palpa_stats_v1;                   /* 120 bytes */
+    uint64_t ipc_errors;            /* total: iceoryx2 operations of the loop that failed (counted;
+                                       the daemon goes on) */
+} palpa_stats_v1;                   /* 128 bytes */
 
 /* Control commands. */
 #define PALPA_CONTROL_RESET     1u  /* rebuild the world from the scene, tick 0 */

@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use palpa::daemon::values;
 use palpa::scene::{Scene, default_scene, load_scene};
 use palpa::trace::{
     write_feedback_header, write_feedback_rows, write_trace_header, write_trace_rows,
@@ -32,13 +33,13 @@ enum Command {
         /// Scene file (TOML); the embedded default scene when omitted.
         scene: Option<PathBuf>,
         /// Simulated duration (s).
-        #[arg(long, default_value_t = 2.0)]
+        #[arg(long, default_value_t = 2.0, allow_hyphen_values = true, value_parser = values::non_negative)]
         duration: f64,
         /// Write a CSV trace here, one row per traced tick per body.
         #[arg(long)]
         trace: Option<PathBuf>,
         /// Trace every N-th tick (tick 0 is always traced).
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, allow_hyphen_values = true, value_parser = values::count)]
         trace_every: u64,
         /// Write the tools' feedback here, one row per tick per tool.
         #[arg(long)]
@@ -60,7 +61,7 @@ enum Command {
     #[cfg(feature = "ipc")]
     Demo {
         /// Seconds of palpation.
-        #[arg(long, default_value_t = 6.0)]
+        #[arg(long, default_value_t = 6.0, allow_hyphen_values = true, value_parser = values::positive)]
         duration: f64,
     },
 }
@@ -75,7 +76,7 @@ struct ServeArgs {
     #[arg(long, default_value = "palpa")]
     prefix: String,
     /// Stop after this many simulated seconds.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = values::non_negative)]
     duration: Option<f64>,
     /// Step once per received pose instead of by the clock (tests, replay, pure-compute benchmarks).
     #[arg(long)]
@@ -84,17 +85,21 @@ struct ServeArgs {
     #[arg(long)]
     rt: bool,
     /// Mesh messages per second.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_hyphen_values = true, value_parser = values::positive)]
     display_rate: f64,
     /// Seconds between periodic mesh keyframes.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true, value_parser = values::positive)]
     keyframe_every: f64,
     /// Fastest believable tool motion (m/s); faster jumps are rejected.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true, value_parser = values::positive)]
     max_speed: f64,
     /// Milliseconds without a good pose before a tool is marked disconnected.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, allow_hyphen_values = true, value_parser = values::count)]
     stale_after_ms: u64,
+    /// (tests) Make every feedback send of loop ticks FROM..FROM+COUNT fail, as if iceoryx2 had
+    /// refused it ("FROM:COUNT", COUNT may be "all").
+    #[arg(long, hide = true, value_parser = parse_faults)]
+    inject_ipc_faults: Option<palpa::daemon::serve::InjectedFaults>,
     /// When stopped, write the whole run's tick timing histograms here (CSV: bin_us, compute_ticks,
     /// lateness_ticks; 1 µs bins, the last bin holding the longer ones; empty bins left out).
     #[arg(long)]
@@ -104,6 +109,26 @@ struct ServeArgs {
     #[arg(long)]
     record: Option<PathBuf>,
 }
+
+/// `FROM:COUNT` (COUNT a number or `all`) of `--inject-ipc-faults`.
+#[cfg(feature = "ipc")]
+fn parse_faults(text: &str) -> Result<palpa::daemon::serve::InjectedFaults, String> {
+    let (from, ticks) = text
+        .split_once(':')
+        .ok_or_else(|| format!("expected FROM:COUNT, found {text}"))?;
+    let from_tick = from
+        .parse()
+        .map_err(|_| format!("expected FROM:COUNT, found {text}"))?;
+    let ticks = match ticks {
+        "all" => u64::MAX,
+        n => values::count(n)?,
+    };
+    Ok(palpa::daemon::serve::InjectedFaults { from_tick, ticks })
+}
+
+/// Exit status of `palpa run` when the divergence guard had to restore a body during the run (the
+/// run itself completed, its outputs are written).
+const EXIT_GUARD_ACTED: i32 = 3;
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
@@ -217,9 +242,15 @@ impl Recording {
                     };
                     self.sink.input(before, i, &pose, 0);
                 }
-                let feedback =
-                    palpa::daemon::feedback_payload(tool, world.tick, tool.active, false, (0, 0));
+                let feedback = palpa::daemon::feedback_of(world, i, tool.active, false, (0, 0));
                 self.sink.feedback(i, &feedback);
+            }
+            if palpa::daemon::guard_acted(world) {
+                for (b, guard) in world.guards.iter().enumerate() {
+                    if let (true, Some(cause)) = (guard.acted, guard.last_cause) {
+                        self.sink.guard(world.tick, b, cause);
+                    }
+                }
             }
             self.mesh(world);
         }
@@ -251,12 +282,6 @@ fn run(
     feedback: Option<&Path>,
     record: Option<&Path>,
 ) -> Result<()> {
-    if !(duration.is_finite() && duration >= 0.0) {
-        bail!("--duration must be a finite number of seconds ≥ 0, found {duration}");
-    }
-    if trace_every == 0 {
-        bail!("--trace-every must be at least 1");
-    }
     let scene = scene_from(path)?;
     let mut world = World::from_scene(&scene);
     let ticks = (duration / world.params.dt).round() as u64;
@@ -278,9 +303,22 @@ fn run(
         None => None,
     };
     let recording = Recording::start(record, &scene, &world)?;
+    // Ctrl-C or SIGTERM ends the run after the current tick, with the recording and traces finished.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    #[cfg(feature = "ipc")]
+    {
+        let handler_stop = stop.clone();
+        ctrlc::set_handler(move || handler_stop.store(true, std::sync::atomic::Ordering::Relaxed))
+            .context("cannot install the Ctrl-C/SIGTERM handler")?;
+    }
+    let mut guard_ticks = 0u64;
     let started = Instant::now();
     for _ in 0..ticks {
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            break;
+        }
         world.step();
+        guard_ticks += palpa::daemon::guard_acted(&world) as u64;
         recording.after_step(&world);
         if let Some(w) = out.as_mut()
             && world.tick % trace_every == 0
@@ -298,6 +336,7 @@ fn run(
             .map_err(|e| anyhow::anyhow!("cannot write a trace: {}", e.error()))?
             .sync_all()?;
     }
+    let ticks = world.tick;
     println!(
         "{}: {} ticks ({} s simulated) in {:.3} s wall ({:.1}x real time, {:.1} µs/tick)",
         scene.name,
@@ -344,6 +383,17 @@ fn run(
     if world.bodies.iter().any(|b| !b.is_finite()) {
         bail!("the simulation diverged; run `palpa check` on the scene for its stability margin");
     }
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        bail!("stopped by a signal after {ticks} ticks (the outputs are complete up to there)");
+    }
+    if guard_ticks > 0 {
+        let events: u64 = world.guards.iter().map(|g| g.events).sum();
+        eprintln!(
+            "warning: the divergence guard acted on {guard_ticks} of {ticks} ticks ({events} body \
+             restorations): the run did not follow the model there; exit status {EXIT_GUARD_ACTED}"
+        );
+        std::process::exit(EXIT_GUARD_ACTED);
+    }
     Ok(())
 }
 
@@ -355,14 +405,6 @@ fn serve(args: ServeArgs) -> Result<()> {
     use std::sync::atomic::{AtomicBool, Ordering};
 
     let scene = scene_from(args.scene.as_deref())?;
-    if let Some(d) = args.duration
-        && !(d.is_finite() && d >= 0.0)
-    {
-        bail!("--duration must be a finite number of seconds ≥ 0, found {d}");
-    }
-    if !(args.display_rate.is_finite() && args.display_rate > 0.0) {
-        bail!("--display-rate must be > 0");
-    }
     let options = ServeOptions {
         prefix: args.prefix.clone(),
         duration: args.duration,
@@ -372,9 +414,12 @@ fn serve(args: ServeArgs) -> Result<()> {
         keyframe_every_s: args.keyframe_every,
         limits: InputLimits {
             max_speed: args.max_speed,
-            stale_after_ticks: (args.stale_after_ms as f64 * 1e-3 / scene.world.dt).round() as u64,
+            stale_after_ticks: ((args.stale_after_ms as f64 * 1e-3 / scene.world.dt).round()
+                as u64)
+                .max(1),
             ..InputLimits::default()
         },
+        inject_ipc_faults: args.inject_ipc_faults,
     };
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = stop.clone();
@@ -428,16 +473,23 @@ fn serve(args: ServeArgs) -> Result<()> {
             };
             #[cfg(not(feature = "record"))]
             let sink = palpa::daemon::sink::RecordSink::none();
-            let summary = serve(&scene, &options, sim_stop, &sink).map_err(|e| e.to_string())?;
+            let served = serve(&scene, &options, sim_stop, &sink).map_err(|e| e.to_string());
+            // The recording is finished whichever way the loop ended (and, should this thread
+            // panic, by the recorder's Drop while unwinding).
             #[cfg(feature = "record")]
-            if let Some(recording) = sink.finish()? {
-                let total: u64 = recording.messages.values().sum();
-                println!(
-                    "palpa serve: recorded {total} messages ({} dropped)",
-                    recording.dropped
-                );
+            match sink.finish() {
+                Ok(Some(recording)) => {
+                    let total: u64 = recording.messages.values().sum();
+                    println!(
+                        "palpa serve: recorded {total} messages ({} dropped)",
+                        recording.dropped
+                    );
+                }
+                Ok(None) => {}
+                Err(e) if served.is_ok() => return Err(e),
+                Err(e) => eprintln!("palpa serve: {e}"),
             }
-            Ok(summary)
+            served
         })
         .context("cannot start the simulation thread")?;
     let summary = handle
@@ -445,11 +497,13 @@ fn serve(args: ServeArgs) -> Result<()> {
         .map_err(|_| anyhow::anyhow!("the simulation thread panicked"))?
         .map_err(|e| anyhow::anyhow!("palpa serve: {e}"))?;
     println!(
-        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, tick compute mean {:.1} µs, p99 {:.0} µs, max {:.1} µs",
+        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, {} guard events, {} IPC errors, tick compute mean {:.1} µs, p99 {:.0} µs, max {:.1} µs",
         summary.ticks,
         summary.synchronicity_misses,
         summary.rejected_inputs,
         summary.disconnects,
+        summary.guard_events,
+        summary.ipc_errors,
         summary.compute_mean_us,
         summary.compute_p99_us,
         summary.compute_max_us
@@ -457,6 +511,15 @@ fn serve(args: ServeArgs) -> Result<()> {
     if let Some(path) = &args.timings {
         std::fs::write(path, summary.timings_csv())
             .with_context(|| format!("cannot write the timings to {}", path.display()))?;
+    }
+    if let Some(first) = &summary.first_ipc_error {
+        eprintln!(
+            "palpa serve: {} IPC operations failed (counted, outlived); the first: {first}",
+            summary.ipc_errors
+        );
+    }
+    if let Some(fatal) = &summary.fatal {
+        bail!("palpa serve: stopped: {fatal}");
     }
     Ok(())
 }

@@ -73,11 +73,22 @@ fn check_warns_before_a_scene_diverges() {
         t.contains("systems: surface_springs, links, rigid_components\n"),
         "{t}"
     );
-    // The run goes on: the divergence guard catches the explicit scheme and says so.
+    // The run goes on to its end: the divergence guard catches the explicit scheme, and the run
+    // says so with a warning and exit status 3 (the guard acted: the run did not follow the model).
     let out = palpa(&["run", path, "--duration", "1"]);
-    assert!(out.status.success(), "{}", text(&out));
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(
+        text(&out).contains("1000 ticks (1 s simulated)"),
+        "{}",
+        text(&out)
+    );
     assert!(
         text(&out).contains("divergence guard acted"),
+        "{}",
+        text(&out)
+    );
+    assert!(
+        text(&out).contains("warning: the divergence guard acted on "),
         "{}",
         text(&out)
     );
@@ -93,7 +104,7 @@ fn check_warns_before_a_scene_diverges() {
     let out = palpa(&["check", path]);
     assert!(text(&out).contains("nodes sub-stepped"), "{}", text(&out));
     let out = palpa(&["run", path, "--duration", "1"]);
-    assert!(out.status.success());
+    assert!(out.status.success(), "{}", text(&out));
     assert!(!text(&out).contains("divergence guard"), "{}", text(&out));
     std::fs::remove_dir_all(dir).unwrap();
 }
@@ -113,4 +124,63 @@ fn a_bad_scene_fails_with_its_place() {
     );
     assert!(!t.contains("panicked"), "{t}");
     std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn numeric_options_refuse_zero_negative_and_non_finite_values() {
+    // (command, option, values refused); each refusal names the option and says what it expects.
+    let positive = ["0", "-1", "NaN", "inf", "-inf", "x"];
+    let non_negative = ["-1", "-0.5", "NaN", "inf", "x"];
+    let counts = ["0", "-1", "1.5", "NaN", "x"];
+    let cases: &[(&[&str], &str, &[&str])] = &[
+        (&["serve"], "--keyframe-every", &positive),
+        (&["serve"], "--max-speed", &positive),
+        (&["serve"], "--display-rate", &positive),
+        (&["serve"], "--stale-after-ms", &counts),
+        (&["serve"], "--duration", &non_negative),
+        (&["run"], "--duration", &non_negative),
+        (&["run"], "--trace-every", &counts),
+        (&["demo"], "--duration", &positive),
+    ];
+    for (command, option, values) in cases {
+        for value in *values {
+            let mut args: Vec<&str> = command.to_vec();
+            args.extend([*option, *value]);
+            let out = palpa(&args);
+            let t = text(&out);
+            assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
+            assert!(
+                t.contains(&format!("invalid value '{value}' for '{option}"))
+                    && t.contains("must be a "),
+                "{args:?}: {t}"
+            );
+        }
+    }
+    for (option, value) in [
+        ("--duration", "0"),
+        ("--duration", "-2"),
+        ("--duration", "NaN"),
+        ("--at", "0,0,inf"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa-device"))
+            .args([option, value])
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{option} {value}: {t}");
+        assert!(t.contains(&format!("invalid value '{value}'")), "{t}");
+    }
+    for args in [
+        ["latency", "--duration", "0"],
+        ["latency", "--duration", "NaN"],
+        ["latency", "--pings", "0"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa-bench"))
+            .args(args)
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
+        assert!(t.contains("must be a "), "{t}");
+    }
 }

@@ -135,9 +135,7 @@ fn wait_for<T>(seconds: f64, mut f: impl FnMut() -> Option<T>) -> Option<T> {
 fn serve_and_device_press_for_3_s_in_lockstep() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let p = prefix("press");
-    // Real-time priority (granted to root, as in CI), so a busy shared machine cannot preempt a tick
-    // past 1 ms; without it the daemon falls back and says so.
-    let daemon = serve(&["--prefix", &p, "--lockstep", "--rt"]);
+    let daemon = serve(&["--prefix", &p, "--lockstep"]);
     let node = create_node().unwrap();
     let stats = subscriber_of(stats_service(&node, &p));
     let (report, trace) = (temp("press.json"), temp("press.csv"));
@@ -173,6 +171,9 @@ fn serve_and_device_press_for_3_s_in_lockstep() {
         .skip(1)
         .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
         .collect();
+    // One row per pose, in sequence.
+    assert_eq!(rows.len(), 3000);
+    assert!(rows.iter().enumerate().all(|(k, r)| r[0] == (k + 1) as f64));
     let force_at = |t: f64| rows.iter().find(|r| r[1] >= t).map(|r| r[7]).unwrap();
     assert!(force_at(1.6) > 0.1, "pressing: {}", force_at(1.6));
     assert!(force_at(1.2) < force_at(1.6), "the force rises with depth");
@@ -181,13 +182,16 @@ fn serve_and_device_press_for_3_s_in_lockstep() {
             .filter(|r| r[1] > 2.9)
             .all(|r| r[5] == 0.0 && r[6] == 0.0 && r[7] == 0.0 && r[8] == 0.0)
     );
-    // The daemon published its statistics and, in lockstep, missed no deadline.
+    // The daemon published its statistics (counts only: timing figures belong in palpa-bench)
+    // and stepped once per pose.
     let stats = last_stats.expect("the stats service publishes");
-    assert!(stats.tick >= 1000 && stats.window_ticks == 1000);
-    assert_eq!(stats.synchronicity_misses, 0);
+    assert!(stats.tick >= 1000 && stats.tick % 1000 == 0 && stats.window_ticks == 1000);
+    assert_eq!((stats.rejected_inputs, stats.disconnects), (0, 0));
+    assert_eq!((stats.guard_events, stats.ipc_errors), (0, 0));
     assert_ne!(stats.active_systems & SYSTEM_TOOL_CONTACT, 0);
+    assert!(out.contains("stopped after 3000 ticks: "), "{out}");
     assert!(
-        out.contains("stopped after 3000 ticks: 0 synchronicity misses"),
+        out.contains("0 rejected inputs, 0 disconnects, 0 guard events, 0 IPC errors"),
         "{out}"
     );
     std::fs::remove_file(temp("press.json")).ok();
@@ -208,7 +212,9 @@ fn good_pose(seq: u64, z: f64) -> ToolPoseV1 {
 fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let p = prefix("bad");
-    let daemon = serve(&["--prefix", &p]);
+    // Lockstep: one tick per pose, so the speed check sees exactly one tick between poses whatever
+    // the machine's load.
+    let daemon = serve(&["--prefix", &p, "--lockstep"]);
     let node = create_node().unwrap();
     let poses = publisher_of(pose_service(&node, &p, "probe"));
     let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
@@ -220,11 +226,17 @@ fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
         }
         last
     };
-    // Waits until the daemon has ticked past `tick` and returns that feedback.
+    // Waits until the daemon has stepped past `tick` (the pose just sent) and returns that feedback.
     let after = |tick: u64| {
-        wait_for(5.0, || newest().filter(|f| f.tick > tick + 2)).expect("the daemon ticks")
+        wait_for(10.0, || newest().filter(|f| f.tick > tick)).expect("the daemon ticks")
     };
-    let mut tick = wait_for(5.0, newest).expect("the daemon is up").tick;
+    let mut tick = wait_for(10.0, || {
+        poses.update_connections().unwrap();
+        newest()
+    })
+    .expect("the daemon is up")
+    .tick;
+    poses.update_connections().unwrap();
     poses.send_copy(good_pose(1, 0.2)).unwrap();
     let f = after(tick);
     assert_eq!(f.seq, 1);
@@ -250,14 +262,23 @@ fn bad_input_is_rejected_counted_and_the_next_good_pose_used() {
     assert_eq!(f.seq, 5, "a backwards sequence number is rejected");
     tick = f.tick;
     poses.send_copy(good_pose(6, 0.201)).unwrap();
-    assert_eq!(after(tick).seq, 6);
-    // Counted in the statistics (published every simulated second).
-    let counted = wait_for(3.0, || {
+    let f = after(tick);
+    assert_eq!(f.seq, 6);
+    tick = f.tick;
+    // Counted in the statistics (published every simulated second: step on to tick 1000).
+    let mut seq = 7;
+    while tick < 1000 {
+        poses.send_copy(good_pose(seq, 0.201)).unwrap();
+        let f = after(tick);
+        assert_eq!(f.seq, seq);
+        (tick, seq) = (f.tick, seq + 1);
+    }
+    let counted = wait_for(10.0, || {
         let mut last = None;
         while let Some(s) = stats.receive().unwrap() {
             last = Some(*s.payload());
         }
-        last.filter(|s| s.tick > tick)
+        last.filter(|s| s.tick >= 1000)
     })
     .expect("stats after the bad poses");
     assert_eq!(counted.rejected_inputs, 4);
@@ -292,22 +313,22 @@ fn a_killed_device_goes_stale_and_a_new_one_is_picked_up() {
     let mut first = first;
     first.0.kill().unwrap(); // SIGKILL
     first.0.wait().unwrap();
-    let killed_at = Instant::now();
-    let stale =
-        wait_for(2.0, || newest().filter(|f| f.flags & FEEDBACK_STALE != 0)).expect("marked stale");
-    assert!(killed_at.elapsed() < Duration::from_millis(1000));
+    // Marked stale after 100 ticks without a pose (the waits below are watchdogs, not timings).
+    let stale = wait_for(20.0, || newest().filter(|f| f.flags & FEEDBACK_STALE != 0))
+        .expect("marked stale");
+    assert!(stale.tick > pressing.unwrap().tick);
     assert_eq!(stale.force, [0.0; 3]);
     assert_eq!(stale.torque, [0.0; 3]);
     // The daemon keeps ticking.
     let later =
-        wait_for(2.0, || newest().filter(|f| f.tick > stale.tick + 200)).expect("still ticking");
+        wait_for(20.0, || newest().filter(|f| f.tick > stale.tick + 200)).expect("still ticking");
     assert_ne!(later.flags & FEEDBACK_STALE, 0);
     // A new device process is picked up (its sequence starts again from 1).
     let second = device(&["--prefix", &p, "--duration", "1", "--motion", "press"])
         .spawn()
         .unwrap();
     let second = Guard(second);
-    let picked = wait_for(5.0, || {
+    let picked = wait_for(20.0, || {
         newest().filter(|f| f.flags & FEEDBACK_STALE == 0 && f.seq < 1000 && f.seq > 0)
     });
     assert!(picked.is_some(), "the new device is picked up");
@@ -461,4 +482,163 @@ fn control_pauses_resumes_and_resets() {
     assert!(reset.tick < 5, "reset goes back to tick 0: {}", reset.tick);
     assert_eq!(stats_paused.paused, 1);
     stop(daemon);
+}
+
+/// Reads the newest sample of a latest-value subscriber.
+fn newest_of<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
+    subscriber: &iceoryx2::port::subscriber::Subscriber<Ipc, T, ()>,
+) -> Option<T> {
+    let mut last = None;
+    while let Some(s) = subscriber.receive().unwrap() {
+        last = Some(*s.payload());
+    }
+    last
+}
+
+/// Waits (watchdog 20 s) for a process to end on its own and returns its status and output.
+fn wait_end(mut guard: Guard) -> (std::process::ExitStatus, String) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(status) = guard.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "palpa serve did not stop");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut out = String::new();
+    use std::io::Read;
+    guard
+        .0
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    (status, out)
+}
+
+#[test]
+fn transient_ipc_errors_are_counted_and_outlived() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("transient");
+    // Feedback sends of loop ticks 100..150 fail as if iceoryx2 had refused them.
+    let daemon = serve(&["--prefix", &p, "--inject-ipc-faults", "100:50"]);
+    let node = create_node().unwrap();
+    let stats = subscriber_of(stats_service(&node, &p));
+    let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
+    let counted = wait_for(30.0, || newest_of(&stats).filter(|s| s.tick >= 2000))
+        .expect("the daemon goes on ticking");
+    assert_eq!(counted.ipc_errors, 50);
+    let f = wait_for(10.0, || {
+        newest_of(&feedback).filter(|f| f.tick > counted.tick)
+    })
+    .expect("feedback flows again");
+    assert!(f.flags & FEEDBACK_STALE != 0, "no device: {f:?}");
+    let out = stop(daemon);
+    assert!(out.contains("0 guard events, 50 IPC errors"), "{out}");
+}
+
+#[test]
+fn persistent_ipc_errors_stop_the_daemon_with_an_error() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("persistent");
+    let daemon = serve(&["--prefix", &p, "--inject-ipc-faults", "100:all"]);
+    let (status, out) = wait_end(daemon);
+    assert!(!status.success(), "{out}");
+    // 100 good ticks, then a second (1000 ticks) of failures on every tick.
+    assert!(out.contains("stopped after 1100 ticks"), "{out}");
+    assert!(out.contains("1000 IPC errors"), "{out}");
+}
+
+/// The stiff body of the `palpa check` warning test, stepped with the explicit scheme (the guard
+/// acts), with a tool over IPC far from it.
+const GUARDED_SCENE: &str = "[world]\ngravity = [0.0, 0.0, 0.0]\nintegrator = \"symplectic\"\n\
+    [[body]]\nname = \"stiff\"\nmesh = { icosphere = { radius = 0.05, subdivisions = 4 } }\n\
+    surface_mass = 0.05\nsurface_stiffness = 400.0\nangular_velocity = [0.0, 0.0, 3.0]\n\
+    [[tool]]\nname = \"probe\"\nshape = { sphere = { radius = 0.006 } }\ninput = \"ipc\"\n";
+
+#[test]
+fn the_divergence_guard_flags_feedback_records_events_and_counts() {
+    use palpa::record::proto;
+    use palpa::record::replay::read_recording_file;
+    use prost::Message;
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("guard");
+    let scene = temp("guard.toml");
+    let recording = temp("guard.mcap");
+    std::fs::write(&scene, GUARDED_SCENE).unwrap();
+    let daemon = serve(&[
+        "--prefix",
+        &p,
+        "--lockstep",
+        scene.to_str().unwrap(),
+        "--record",
+        recording.to_str().unwrap(),
+    ]);
+    let node = create_node().unwrap();
+    let poses = publisher_of(pose_service(&node, &p, "probe"));
+    let feedback = subscriber_of(feedback_service(&node, &p, "probe"));
+    let stats = subscriber_of(stats_service(&node, &p));
+    let mut tick = wait_for(10.0, || {
+        poses.update_connections().unwrap();
+        newest_of(&feedback)
+    })
+    .expect("the daemon is up")
+    .tick;
+    poses.update_connections().unwrap();
+    let mut flagged = Vec::new();
+    for seq in 1..=1000 {
+        poses.send_copy(good_pose(seq, 0.5)).unwrap();
+        let f =
+            wait_for(10.0, || newest_of(&feedback).filter(|f| f.tick > tick)).expect("answered");
+        assert_eq!(f.seq, seq);
+        assert!(f.force.iter().chain(&f.torque).all(|x| x.is_finite()));
+        if f.flags & FEEDBACK_DIVERGED != 0 {
+            flagged.push(f.tick);
+        }
+        tick = f.tick;
+    }
+    let s = wait_for(10.0, || newest_of(&stats)).expect("stats at tick 1000");
+    let out = stop(daemon);
+    assert!(!flagged.is_empty(), "the guard acts on this scene");
+    assert_eq!(
+        s.guard_events,
+        flagged.len() as u64,
+        "one body: one event a flagged tick"
+    );
+    assert!(
+        out.contains(&format!("{} guard events", flagged.len())),
+        "{out}"
+    );
+    // The recording has one DIVERGENCE_GUARD event per flagged tick, naming the body and the cause,
+    // and the recorded feedback carries the flag on exactly those ticks.
+    let r = read_recording_file(&recording).unwrap();
+    let events: Vec<proto::Event> = r
+        .messages
+        .iter()
+        .filter(|m| m.topic == "/palpa/events")
+        .map(|m| proto::Event::decode(&m.data[..]).unwrap())
+        .filter(|e| e.kind == proto::event::Kind::DivergenceGuard as i32)
+        .collect();
+    assert_eq!(
+        events.iter().map(|e| e.tick).collect::<Vec<_>>(),
+        flagged,
+        "events at the flagged ticks"
+    );
+    assert!(
+        events.iter().all(|e| e.detail.starts_with("body stiff: ")),
+        "{:?}",
+        events[0]
+    );
+    let recorded_flagged: Vec<u64> = r
+        .messages
+        .iter()
+        .filter(|m| m.topic == "/palpa/tool/probe/feedback")
+        .map(|m| proto::Feedback::decode(&m.data[..]).unwrap())
+        .filter(|f| f.flags & FEEDBACK_DIVERGED != 0)
+        .map(|f| f.tick)
+        .collect();
+    assert_eq!(recorded_flagged, flagged);
+    std::fs::remove_file(scene).ok();
+    std::fs::remove_file(recording).ok();
 }

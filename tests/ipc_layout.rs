@@ -59,6 +59,7 @@ const TYPES: &[(&str, &[&str])] = &[
             "dropped_records",
             "stability_margin",
             "guard_events",
+            "ipc_errors",
         ],
     ),
     (
@@ -158,7 +159,8 @@ fn rust_payloads_match_the_c_header() {
             paused,
             dropped_records,
             stability_margin,
-            guard_events
+            guard_events,
+            ipc_errors
         ]
     );
     rust_layout!(
@@ -195,7 +197,7 @@ fn rust_payloads_match_the_c_header() {
     // The sizes the contract states.
     assert_eq!(size_of::<ToolPoseV1>(), 88);
     assert_eq!(size_of::<ToolFeedbackV1>(), 80);
-    assert_eq!(size_of::<StatsV1>(), 120);
+    assert_eq!(size_of::<StatsV1>(), 128);
     assert_eq!(size_of::<MeshHeaderV1>(), 40);
     assert_eq!(TOOL_POSE_TYPE_NAME, "palpa_tool_pose_v1");
     assert_eq!(TOOL_FEEDBACK_TYPE_NAME, "palpa_tool_feedback_v1");

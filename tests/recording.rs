@@ -1,6 +1,7 @@
 //! Recording and replay: a scripted press-and-stroke session recorded to MCAP replays bit for bit,
 //! an altered input is caught at its tick, replay is deterministic, an independent Python reader
-//! decodes every message, and a daemon killed while recording leaves a readable file.
+//! decodes every message, a daemon killed while recording leaves a readable file, and one stopped by
+//! SIGTERM or by an error leaves a complete one (summary and footer).
 
 mod common;
 
@@ -153,60 +154,234 @@ fn an_independent_python_reader_decodes_every_message() {
     std::fs::remove_file(path).ok();
 }
 
-#[test]
-fn a_daemon_killed_while_recording_leaves_a_readable_file() {
-    let path = temp("killed.mcap");
-    let prefix = format!("rk{}", std::process::id());
-    let mut daemon = Command::new(env!("CARGO_BIN_EXE_palpa"))
-        .args([
-            "serve",
-            "--prefix",
-            &prefix,
-            "--record",
-            path.to_str().unwrap(),
-        ])
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut device = Command::new(env!("CARGO_BIN_EXE_palpa-device"))
-        .args([
-            "--prefix",
-            &prefix,
-            "--duration",
-            "10",
-            "--motion",
-            "palpate",
-        ])
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
-    // Let it run a little over 2.5 simulated seconds, then SIGKILL the daemon.
-    let started = Instant::now();
-    while started.elapsed() < Duration::from_millis(2700) {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    daemon.kill().unwrap();
-    daemon.wait().unwrap();
-    let _ = device.kill();
-    let _ = device.wait();
+/// `palpa-replay FILE --summary --json`.
+fn summary_of(path: &Path) -> serde_json::Value {
     let out = replay(&[path.to_str().unwrap(), "--summary", "--json"]);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Kills its process when dropped.
+struct Child(std::process::Child);
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn serve_recording(prefix: &str, path: &Path, extra: &[&str]) -> Child {
+    Child(
+        Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args([
+                "serve",
+                "--prefix",
+                prefix,
+                "--record",
+                path.to_str().unwrap(),
+            ])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// Waits for the process to end (watchdog 30 s); its status, standard output and error.
+fn ended(mut child: Child) -> (std::process::ExitStatus, String) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let status = loop {
+        if let Some(status) = child.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "palpa serve does not stop");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    use std::io::Read;
+    let mut text = String::new();
+    child
+        .0
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut text)
+        .unwrap();
+    child
+        .0
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut text)
+        .unwrap();
+    (status, text)
+}
+
+unsafe extern "C" {
+    #[link_name = "kill"]
+    fn libc_kill(pid: i32, signal: i32) -> i32;
+}
+
+/// Drives a lockstep daemon's probe with `count` poses (a press), each answered before the next.
+fn drive(prefix: &str, count: u64) {
+    use iceoryx2::port::update_connections::UpdateConnections;
+    use palpa::ipc::payload::ToolPoseV1;
+    use palpa::ipc::services::{create_node, feedback_service, pose_service};
+    let node = create_node().unwrap();
+    let poses = pose_service(&node, prefix, "probe")
+        .unwrap()
+        .publisher_builder()
+        .create()
+        .unwrap();
+    let feedback = feedback_service(&node, prefix, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let newest = || {
+        let mut last = None;
+        while let Some(s) = feedback.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last
+    };
+    let wait = |what: &str, f: &mut dyn FnMut() -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while !f() {
+            assert!(Instant::now() < deadline, "{what}");
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    };
+    let mut tick = 0;
+    wait("the daemon is up", &mut || {
+        poses.update_connections().unwrap();
+        newest().map(|f| tick = f.tick).is_some()
+    });
+    poses.update_connections().unwrap();
+    for seq in 1..=count {
+        let z = 0.08 - 0.02 * (seq as f64 / count as f64);
+        poses
+            .send_copy(ToolPoseV1 {
+                seq,
+                device_time_ns: seq,
+                position: [0.0, 0.0, z],
+                orientation: [1.0, 0.0, 0.0, 0.0],
+                ..ToolPoseV1::default()
+            })
+            .unwrap();
+        wait("answered", &mut || {
+            newest()
+                .filter(|f| f.tick > tick)
+                .map(|f| tick = f.tick)
+                .is_some()
+        });
+    }
+}
+
+#[test]
+fn a_daemon_killed_while_recording_leaves_a_readable_file() {
+    let path = temp("killed.mcap");
+    let prefix = format!("rk{}", std::process::id());
+    let mut daemon = serve_recording(&prefix, &path, &["--lockstep"]);
+    // 2 500 ticks, then wait (watchdog, no timing) until the recorder has closed the chunks of the
+    // first two seconds; the lockstep daemon waits meanwhile. Then SIGKILL.
+    drive(&prefix, 2500);
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while summary_of(&path)["ticks"].as_u64().unwrap_or(0) < 2000 {
+        assert!(
+            Instant::now() < deadline,
+            "chunks are not closed every 1000 ticks"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    daemon.0.kill().unwrap();
+    daemon.0.wait().unwrap();
+    let summary = summary_of(&path);
     assert_eq!(summary["complete"], false);
-    // At most the last second is lost: more than a second of the ~2.7 s is in complete chunks.
+    // At most the last second is lost.
     let ticks = summary["ticks"].as_u64().unwrap();
-    assert!(ticks >= 1000, "only {ticks} ticks readable");
+    assert!((2000..=2500).contains(&ticks), "{ticks} ticks readable");
     assert!(
         summary["messages"]["/palpa/tool/probe/feedback"]
             .as_u64()
             .unwrap()
-            >= 1000
+            >= 2000
     );
-    std::fs::remove_file(Path::new(&path)).ok();
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn serve_stopped_by_sigterm_leaves_a_complete_recording() {
+    let path = temp("sigterm.mcap");
+    let prefix = format!("rt{}", std::process::id());
+    let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
+    drive(&prefix, 1500);
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc_kill(daemon.0.id() as i32, 15);
+    }
+    let (status, text) = ended(daemon);
+    assert!(status.success(), "{status}: {text}");
+    let summary = summary_of(&path);
+    assert_eq!(summary["complete"], true, "{summary}");
+    assert_eq!(summary["ticks"], 1500, "{summary}");
+    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 1500);
+    assert_eq!(summary["messages"]["/palpa/tool/probe/input"], 1500);
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{verified}");
+    assert!(
+        verified.contains("verify: OK — 1500 ticks replayed"),
+        "{verified}"
+    );
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn serve_stopped_by_an_error_leaves_a_complete_recording() {
+    // In the loop: IPC failing on every tick from tick 200 on; after a second of it the daemon
+    // stops with an error.
+    let path = temp("error.mcap");
+    let prefix = format!("re{}", std::process::id());
+    let daemon = serve_recording(&prefix, &path, &["--inject-ipc-faults", "200:all"]);
+    let (status, text) = ended(daemon);
+    assert!(!status.success(), "{text}");
+    assert!(text.contains("stopped after 1200 ticks"), "{text}");
+    assert!(
+        text.contains("iceoryx2 failed on each of the last 1000 ticks"),
+        "{text}"
+    );
+    let summary = summary_of(&path);
+    assert_eq!(summary["complete"], true, "{summary}");
+    assert_eq!(summary["ticks"], 1200, "{summary}");
+    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 1200);
+    std::fs::remove_file(&path).ok();
+
+    // At start: the daemon's statistics service already exists with another payload type, so the
+    // daemon cannot open it and stops before the first tick.
+    use palpa::ipc::services::{create_node, stats_service_name};
+    let prefix = format!("rs{}", std::process::id());
+    let node = create_node().unwrap();
+    let _squatter = node
+        .service_builder(
+            &iceoryx2::prelude::ServiceName::new(&stats_service_name(&prefix)).unwrap(),
+        )
+        .publish_subscribe::<u64>()
+        .open_or_create()
+        .unwrap();
+    let daemon = serve_recording(&prefix, &path, &[]);
+    let (status, text) = ended(daemon);
+    assert!(!status.success(), "{text}");
+    assert!(text.contains("Error: palpa serve:"), "{text}");
+    let summary = summary_of(&path);
+    assert_eq!(summary["complete"], true, "{summary}");
+    assert_eq!(summary["messages"]["/palpa/scene"], 1, "{summary}");
+    std::fs::remove_file(&path).ok();
 }
 
 #[test]

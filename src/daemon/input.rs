@@ -3,7 +3,9 @@
 //!
 //! A pose is rejected (and counted) when a number is not finite, the quaternion is not unit within
 //! tolerance, its sequence number does not increase, or it jumps farther from the last good pose than
-//! the speed limit allows in the time between them; the tool then keeps its last good pose. A tool
+//! the speed limit allows in the time between them — measured on the daemon's receive clock (its
+//! ticks between the two accepted poses), never on the bridge's `device_time_ns`; the tool then
+//! keeps its last good pose. A tool
 //! with no accepted pose for `stale_after_ticks` is disconnected: its history is forgotten, so a
 //! restarted bridge (whose sequence starts again) or one that connects late is picked up with its
 //! first good pose, wherever that is.
@@ -64,8 +66,8 @@ pub struct ToolInputState {
 }
 
 impl ToolInputState {
-    /// Checks a pose offered at `tick` (`dt` the tick period); on acceptance it becomes the last
-    /// good pose and is returned as a tool pose and jaw.
+    /// Checks a pose received at `tick` of the daemon's clock (`dt` its period); on acceptance it
+    /// becomes the last good pose and is returned as a tool pose and jaw.
     pub fn offer(
         &mut self,
         pose: &ToolPoseV1,
@@ -116,10 +118,9 @@ impl ToolInputState {
             if pose.seq <= last.seq {
                 return Err(Rejection::SequenceBackwards);
             }
-            let device_elapsed =
-                pose.device_time_ns.saturating_sub(last.device_time_ns) as f64 * 1e-9;
-            let tick_elapsed = tick.saturating_sub(self.last_good_tick).max(1) as f64 * dt;
-            let elapsed = device_elapsed.max(tick_elapsed);
+            // The daemon's own clock, never the bridge's `device_time_ns`: a bridge cannot widen
+            // its own limit by jumping its time stamps.
+            let elapsed = tick.saturating_sub(self.last_good_tick).max(1) as f64 * dt;
             if (position - Vec3::from(last.position)).norm() > limits.max_speed * elapsed {
                 return Err(Rejection::TooFast);
             }
@@ -189,6 +190,28 @@ mod tests {
         assert_eq!(state.rejected, 4);
         let (good, _) = state.offer(&pose(6, 0.001), 6, 0.001, &limits).unwrap();
         assert_eq!(good.position_in_world.x, 0.001);
+    }
+
+    #[test]
+    fn the_speed_limit_runs_on_the_daemon_clock_not_the_bridge_time_stamps() {
+        let limits = InputLimits::default();
+        let mut state = ToolInputState::default();
+        state.offer(&pose(1, 0.0), 10, 0.001, &limits).unwrap();
+        // One tick later, 1 m away, claiming an hour passed on the device: rejected.
+        let mut jump = pose(2, 1.0);
+        jump.device_time_ns = 3_600_000_000_000;
+        assert_eq!(
+            state.offer(&jump, 11, 0.001, &limits),
+            Err(Rejection::TooFast)
+        );
+        // 5 mm one tick after the last good pose is within 10 m/s, whatever the device time says.
+        let mut near = pose(3, 0.005);
+        near.device_time_ns = 0;
+        assert!(state.offer(&near, 11, 0.001, &limits).is_ok());
+        // 0.9 m after 100 ticks of the daemon (0.1 s) is 9 m/s: accepted.
+        let mut far = pose(4, 0.905);
+        far.device_time_ns = 1;
+        assert!(state.offer(&far, 111, 0.001, &limits).is_ok());
     }
 
     #[test]

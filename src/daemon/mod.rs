@@ -6,14 +6,40 @@ pub mod input;
 pub mod serve;
 pub mod sink;
 pub mod stats;
+pub mod values;
 
 use crate::ipc::payload::{
     FEEDBACK_CLAMPED, FEEDBACK_DIVERGED, FEEDBACK_REJECTED, FEEDBACK_STALE, ToolFeedbackV1,
 };
 use crate::tool::Tool;
+use crate::world::World;
+
+/// Whether the divergence guard restored any body during the world's last step.
+pub fn guard_acted(world: &World) -> bool {
+    world.counters.guard_events > 0
+}
+
+/// [`feedback_payload`] of tool `tool` after the world's last step, with
+/// [`FEEDBACK_DIVERGED`] set when the divergence guard acted on any body in that step (every tool's
+/// feedback of that tick carries it). What the daemon and `palpa run` publish and record, and what
+/// replay must recompute to compare.
+pub fn feedback_of(
+    world: &World,
+    tool: usize,
+    connected: bool,
+    rejected: bool,
+    echo: (u64, u64),
+) -> ToolFeedbackV1 {
+    let mut payload = feedback_payload(&world.tools[tool], world.tick, connected, rejected, echo);
+    if guard_acted(world) {
+        payload.flags |= FEEDBACK_DIVERGED;
+    }
+    payload
+}
 
 /// The feedback payload of a tool after a step: zero with the stale flag when its bridge is not
-/// connected, never a non-finite number (flagged instead). `echo` is the `seq` and `device_time_ns`
+/// connected, never a non-finite number (flagged instead). It does not see the guard: use
+/// [`feedback_of`], which adds the divergence flag of the tick. `echo` is the `seq` and `device_time_ns`
 /// of the pose it answers. Shared by the daemon and replay, so both produce the same bytes.
 pub fn feedback_payload(
     tool: &Tool,

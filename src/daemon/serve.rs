@@ -43,6 +43,19 @@ pub struct ServeOptions {
     pub keyframe_every_s: f64,
     /// Input checks.
     pub limits: InputLimits,
+    /// Test hook: make the loop's IPC operations fail on purpose (see [`InjectedFaults`]).
+    pub inject_ipc_faults: Option<InjectedFaults>,
+}
+
+/// IPC faults injected on purpose, to test that the daemon outlives transient errors and stops
+/// cleanly (its recording finished) on persistent ones: every feedback send of the loop ticks
+/// `from_tick .. from_tick + ticks` fails as if iceoryx2 had refused it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InjectedFaults {
+    /// First loop tick (counted from 0, paused ticks included) that fails.
+    pub from_tick: u64,
+    /// Ticks that fail (`u64::MAX`: all from then on).
+    pub ticks: u64,
 }
 
 impl Default for ServeOptions {
@@ -55,6 +68,7 @@ impl Default for ServeOptions {
             display_rate_hz: 60.0,
             keyframe_every_s: 2.0,
             limits: InputLimits::default(),
+            inject_ipc_faults: None,
         }
     }
 }
@@ -80,6 +94,17 @@ pub struct ServeSummary {
     pub compute_histogram: Vec<u32>,
     /// Ticks per 1 µs bin of wake-up lateness over the whole run.
     pub lateness_histogram: Vec<u32>,
+    /// Times the divergence guard restored a body (resets included).
+    pub guard_events: u64,
+    /// Ticks on which the divergence guard acted.
+    pub guard_ticks: u64,
+    /// IPC operations of the loop that failed (counted; the loop went on).
+    pub ipc_errors: u64,
+    /// The first IPC error of the run, if any.
+    pub first_ipc_error: Option<String>,
+    /// Why the loop stopped on its own when it could not go on (IPC failing on every tick for a
+    /// second); `None` when it was stopped or reached its duration.
+    pub fatal: Option<String>,
 }
 
 impl ServeSummary {
@@ -131,6 +156,59 @@ fn setup_realtime() -> Vec<String> {
         }
     }
     warnings
+}
+
+/// The loop's IPC failures: counted, the first one kept (formatted once, into a buffer reserved at
+/// start), and the streak of consecutive ticks with a failure, which decides when the daemon cannot
+/// go on.
+struct IpcErrors {
+    total: u64,
+    first: String,
+    failed_this_tick: bool,
+    streak: u64,
+}
+
+impl IpcErrors {
+    fn new() -> Self {
+        Self {
+            total: 0,
+            first: String::with_capacity(512),
+            failed_this_tick: false,
+            streak: 0,
+        }
+    }
+
+    /// Counts `error` from `site`.
+    fn note(&mut self, site: &str, error: &dyn core::fmt::Debug) {
+        use std::fmt::Write;
+        if self.total == 0 {
+            let _ = write!(self.first, "{site}: {error:?}");
+        }
+        self.total += 1;
+        self.failed_this_tick = true;
+    }
+
+    /// The value of `result`, or `None` with the error counted.
+    fn ok<T, E: core::fmt::Debug>(&mut self, site: &str, result: Result<T, E>) -> Option<T> {
+        match result {
+            Ok(v) => Some(v),
+            Err(e) => {
+                self.note(site, &e);
+                None
+            }
+        }
+    }
+
+    /// Closes a tick; returns the number of consecutive ticks that had a failure.
+    fn end_tick(&mut self) -> u64 {
+        self.streak = if self.failed_this_tick {
+            self.streak + 1
+        } else {
+            0
+        };
+        self.failed_this_tick = false;
+        self.streak
+    }
 }
 
 fn active_system_bits(world: &World) -> u32 {
@@ -204,6 +282,10 @@ pub fn serve(
     let max_ticks = options.duration.map(|d| (d / dt).round() as u64);
     let period = Duration::from_secs_f64(dt);
     let period_us = dt * 1e6;
+    // IPC failing on every tick for a second (or every poll of a lockstep wait for a second of wall
+    // time) is what the daemon cannot go on from; anything shorter is counted and outlived.
+    let fatal_streak = ((1.0 / dt).round() as u64).max(1);
+    let fatal_wait = Duration::from_secs(1);
     // The bound depends on masses and stiffnesses only: computed once (again after a reset).
     let mut stability_margin = world
         .stability_margins()
@@ -214,7 +296,11 @@ pub fn serve(
     let mut whole_run = LoopStats::default();
     let mut stats_out = StatsV1::default();
     let mut summary = ServeSummary::default();
+    let mut errors = IpcErrors::new();
     let mut paused = false;
+    // The daemon's receive clock: loop ticks since start, paused ones included (in lockstep, one
+    // per pose). Input checks measure time on it, never on the bridges' time stamps.
+    let mut clock: u64 = 0;
     let mut deadline = Instant::now() + period;
     let spin = Duration::from_micros(200);
 
@@ -225,27 +311,51 @@ pub fn serve(
         // Wait for this tick's turn.
         let lateness_us = if options.lockstep && !ipc_tools.is_empty() {
             let mut polls = 0u32;
+            let mut failing_since: Option<Instant> = None;
             'wait: loop {
                 if stop.load(Ordering::Relaxed) {
                     break 'wait;
                 }
-                if pose_subscribers
-                    .iter()
-                    .any(|s| s.has_samples().unwrap_or(false))
-                {
+                let mut any = false;
+                let mut failed = false;
+                for s in &pose_subscribers {
+                    match s.has_samples() {
+                        Ok(has) => any |= has,
+                        Err(e) => {
+                            errors.note("pose subscriber (has_samples)", &e);
+                            failed = true;
+                        }
+                    }
+                }
+                if any {
                     break 'wait;
+                }
+                if failed {
+                    let since = *failing_since.get_or_insert_with(Instant::now);
+                    if since.elapsed() > fatal_wait {
+                        summary.fatal = Some(format!(
+                            "iceoryx2 failed on every poll for pose samples for {} s",
+                            fatal_wait.as_secs()
+                        ));
+                        break 'wait;
+                    }
+                } else {
+                    failing_since = None;
                 }
                 // While idle, let late subscribers (a bridge that starts after us) receive the last
                 // feedback, so they can tell the daemon is up.
                 polls += 1;
                 if polls % 500 == 0 {
                     for publisher in &feedback_publishers {
-                        publisher.update_connections()?;
+                        errors.ok(
+                            "feedback publisher (connections)",
+                            publisher.update_connections(),
+                        );
                     }
                 }
                 std::thread::sleep(Duration::from_micros(20));
             }
-            if stop.load(Ordering::Relaxed) {
+            if stop.load(Ordering::Relaxed) || summary.fatal.is_some() {
                 break;
             }
             0.0
@@ -263,9 +373,15 @@ pub fn serve(
                 * 1e6
         };
         let started = Instant::now();
+        let faulty = options
+            .inject_ipc_faults
+            .is_some_and(|f| clock >= f.from_tick && clock - f.from_tick < f.ticks);
 
         // Control.
-        while let Some(request) = control_server.receive()? {
+        while let Some(request) = errors
+            .ok("control server (receive)", control_server.receive())
+            .flatten()
+        {
             let command = request.payload().command;
             let status = match command {
                 CONTROL_RESET => {
@@ -298,22 +414,28 @@ pub fn serve(
                 }
                 _ => -1,
             };
-            request.send_copy(ControlResponseV1 {
-                command,
-                status,
-                tick: world.tick,
-            })?;
+            errors.ok(
+                "control server (respond)",
+                request.send_copy(ControlResponseV1 {
+                    command,
+                    status,
+                    tick: world.tick,
+                }),
+            );
         }
 
         // Newest pose of every external tool.
         for (k, &tool_index) in ipc_tools.iter().enumerate() {
             let mut newest = None;
-            while let Some(sample) = pose_subscribers[k].receive()? {
+            while let Some(sample) = errors
+                .ok("pose subscriber (receive)", pose_subscribers[k].receive())
+                .flatten()
+            {
                 newest = Some(*sample.payload());
             }
             inputs[k].rejected_this_tick = false;
             if let Some(pose) = newest {
-                match inputs[k].offer(&pose, world.tick, dt, &options.limits) {
+                match inputs[k].offer(&pose, clock, dt, &options.limits) {
                     Ok((tool_pose, jaw)) => {
                         world.tools[tool_index].set_target(tool_pose, jaw);
                         echo[k] = (pose.seq, pose.device_time_ns);
@@ -322,7 +444,7 @@ pub fn serve(
                     Err(_) => sink.event(world.tick, event::INPUT_REJECTED, Some(tool_index)),
                 }
             }
-            if inputs[k].update_staleness(world.tick, &options.limits) {
+            if inputs[k].update_staleness(clock, &options.limits) {
                 world.tools[tool_index].deactivate();
                 sink.event(world.tick, event::DISCONNECT, Some(tool_index));
             }
@@ -332,31 +454,63 @@ pub fn serve(
         if stepped {
             world.step();
         }
+        // The divergence guard restored a body in this step: flag every tool's feedback, record
+        // which body and why, count it.
+        let diverged = stepped && crate::daemon::guard_acted(&world);
+        if diverged {
+            summary.guard_ticks += 1;
+            for (b, guard) in world.guards.iter().enumerate() {
+                if guard.acted {
+                    summary.guard_events += 1;
+                    if let Some(cause) = guard.last_cause {
+                        sink.guard(world.tick, b, cause);
+                    }
+                }
+            }
+        }
 
         // Feedback.
         for (k, &tool_index) in ipc_tools.iter().enumerate() {
-            let payload = feedback_payload(
+            let mut payload = feedback_payload(
                 &world.tools[tool_index],
                 world.tick,
                 inputs[k].connected,
                 inputs[k].rejected_this_tick,
                 echo[k],
             );
-            feedback_publishers[k].send_copy(payload)?;
+            if diverged {
+                payload.flags |= FEEDBACK_DIVERGED;
+            }
+            if faulty {
+                errors.note("feedback publisher (send)", &"injected fault");
+            } else {
+                errors.ok(
+                    "feedback publisher (send)",
+                    feedback_publishers[k].send_copy(payload),
+                );
+            }
             if stepped {
                 sink.feedback(tool_index, &payload);
             }
         }
 
-        // Display.
+        // Display. A message iceoryx2 refuses is lost to the displays (they resynchronise on the
+        // next keyframe, or ask for one); it is still recorded, as the daemon produced it.
         if stepped {
-            meshes.produce(&world, |header, bytes| -> Result<(), IpcError> {
-                let mut sample = mesh_publisher.loan_slice_uninit(bytes.len())?;
-                *sample.user_header_mut() = *header;
-                sample.write_from_slice(bytes).send()?;
+            let _ = meshes.produce(&world, |header, bytes| -> Result<(), ()> {
+                if let Some(mut sample) = errors.ok(
+                    "mesh publisher (loan)",
+                    mesh_publisher.loan_slice_uninit(bytes.len()),
+                ) {
+                    *sample.user_header_mut() = *header;
+                    errors.ok(
+                        "mesh publisher (send)",
+                        sample.write_from_slice(bytes).send(),
+                    );
+                }
                 sink.mesh(header, bytes);
                 Ok(())
-            })?;
+            });
         }
 
         // Statistics.
@@ -382,11 +536,22 @@ pub fn serve(
             stats_out.paused = paused as u32;
             stats_out.dropped_records = sink.dropped().min(u32::MAX as u64) as u32;
             stats_out.stability_margin = stability_margin;
-            stats_out.guard_events = world.guards.iter().map(|g| g.events).sum();
-            stats_publisher.send_copy(stats_out)?;
+            stats_out.guard_events = summary.guard_events;
+            stats_out.ipc_errors = errors.total;
+            errors.ok(
+                "stats publisher (send)",
+                stats_publisher.send_copy(stats_out),
+            );
             sink.stats(&stats_out);
         }
         summary.ticks += 1;
+        clock += 1;
+        if errors.end_tick() >= fatal_streak {
+            summary.fatal = Some(format!(
+                "iceoryx2 failed on each of the last {fatal_streak} ticks"
+            ));
+            break;
+        }
         deadline += period;
         let now = Instant::now();
         if now > deadline + period * 10 {
@@ -403,5 +568,9 @@ pub fn serve(
     summary.synchronicity_misses = stats.synchronicity_misses;
     summary.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
     summary.disconnects = inputs.iter().map(|i| i.disconnects).sum();
+    summary.ipc_errors = errors.total;
+    if errors.total > 0 {
+        summary.first_ipc_error = Some(errors.first.clone());
+    }
     Ok(summary)
 }

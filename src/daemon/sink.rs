@@ -104,6 +104,20 @@ impl RecordSink {
         let _ = (tick, kind, tool);
     }
 
+    /// The divergence guard restored body `body` (for `cause`) in the step that ended at `tick`.
+    pub fn guard(&self, tick: u64, body: usize, cause: crate::dynamics::guard::GuardCause) {
+        #[cfg(feature = "record")]
+        if let Some(r) = &self.recorder {
+            r.push(crate::record::recorder::Record::Guard {
+                tick,
+                body: body.min(u16::MAX as usize) as u16,
+                cause,
+            });
+        }
+        #[cfg(not(feature = "record"))]
+        let _ = (tick, body, cause);
+    }
+
     /// Records dropped so far.
     pub fn dropped(&self) -> u64 {
         #[cfg(feature = "record")]

@@ -43,7 +43,9 @@ pub struct ToolPoseV1 {
 pub const FEEDBACK_STALE: u32 = 1;
 /// Feedback flag: the force was scaled down to the tool's `max_force`.
 pub const FEEDBACK_CLAMPED: u32 = 2;
-/// Feedback flag: the divergence guard acted this tick.
+/// Feedback flag: the divergence guard acted on this tick — it restored at least one body (any body,
+/// not only one this tool touches) — or the tool's force or torque was not finite and was sent as
+/// zero. Set on that tick's feedback of every tool.
 pub const FEEDBACK_DIVERGED: u32 = 4;
 /// Feedback flag: the newest pose was rejected; the last good one was used.
 pub const FEEDBACK_REJECTED: u32 = 8;
@@ -88,7 +90,7 @@ pub const SYSTEM_TOOL_CONTACT: u32 = 1 << 5;
 /// Active-system bit: body–body contact.
 pub const SYSTEM_BODY_CONTACT: u32 = 1 << 6;
 
-/// Loop statistics over a one-second window (`palpa_stats_v1`, 120 bytes).
+/// Loop statistics over a one-second window (`palpa_stats_v1`, 128 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend), type_name("palpa_stats_v1"))]
@@ -126,8 +128,11 @@ pub struct StatsV1 {
     /// Smallest stability margin of any body under the paper's scheme at dt (ω·Δt limit minus the
     /// worst node's ω·Δt; negative: that body needs its multi-rate or implicit integrator).
     pub stability_margin: f64,
-    /// Total times the divergence guard restored a body.
+    /// Total times the divergence guard restored a body (over the whole session, resets included).
     pub guard_events: u64,
+    /// Total iceoryx2 operations of the loop that failed (a send, a receive, a loan, a connection
+    /// update); the daemon counts them and goes on.
+    pub ipc_errors: u64,
 }
 
 /// Control command: rebuild the world from the scene, back to tick 0.

@@ -21,6 +21,7 @@ use prost::Message;
 
 use super::DESCRIPTOR_SET;
 use super::proto;
+use crate::dynamics::guard::GuardCause;
 use crate::ipc::payload::{MESH_KEYFRAME, MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1};
 use crate::scene::Scene;
 use crate::world::World;
@@ -55,6 +56,15 @@ pub enum Record {
     },
     /// Loop statistics.
     Stats(StatsV1),
+    /// The divergence guard restored a body during the step that ended at `tick`.
+    Guard {
+        /// Tick.
+        tick: u64,
+        /// Body index.
+        body: u16,
+        /// Why.
+        cause: GuardCause,
+    },
     /// Something that happened.
     Event {
         /// Tick.
@@ -222,12 +232,29 @@ impl Recorder {
 
     /// Drains the queue, writes the summary and closes the file.
     pub fn finish(mut self) -> Result<RecordingSummary, String> {
+        self.close()
+    }
+
+    fn close(&mut self) -> Result<RecordingSummary, String> {
         self.done.store(true, Ordering::Release);
         match self.thread.take() {
             Some(t) => t
                 .join()
                 .map_err(|_| "the recorder thread panicked".to_string())?,
             None => Ok(RecordingSummary::default()),
+        }
+    }
+}
+
+/// A recorder dropped without [`Recorder::finish`] (an error or a panic unwinding through the
+/// session) still drains its queue and writes the summary and footer: every way out of a session
+/// leaves a complete file. An error of the writer is printed, as nothing else can report it.
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        if self.thread.is_some()
+            && let Err(e) = self.close()
+        {
+            eprintln!("palpa: {e}");
         }
     }
 }
@@ -468,6 +495,7 @@ pub fn stats_message(s: &StatsV1, dropped: u64) -> proto::Stats {
         dropped_records: dropped,
         stability_margin: s.stability_margin,
         guard_events: s.guard_events,
+        ipc_errors: s.ipc_errors,
     }
 }
 
@@ -633,6 +661,26 @@ impl WriterThread {
                     &message.encode_to_vec(),
                 )?;
                 Ok(stats.tick)
+            }
+            Record::Guard { tick, body, cause } => {
+                let name = self
+                    .body_names
+                    .get(body as usize)
+                    .cloned()
+                    .unwrap_or_default();
+                let message = proto::Event {
+                    tick,
+                    kind: proto::event::Kind::DivergenceGuard as i32,
+                    tool: String::new(),
+                    detail: format!("body {name}: {cause:?}"),
+                };
+                self.channels.write(
+                    &mut self.writer,
+                    TOPIC_EVENTS,
+                    tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(tick)
             }
             Record::Event { tick, kind, tool } => {
                 let message = proto::Event {

@@ -54,7 +54,7 @@ enum Cmd {
     Echo {
         #[arg(long)]
         prefix: String,
-        #[arg(long, default_value_t = 60.0)]
+        #[arg(long, default_value_t = 60.0, value_parser = palpa::daemon::values::positive)]
         timeout: f64,
     },
 }
@@ -68,10 +68,10 @@ struct LatencyArgs {
     #[arg(long)]
     quick: bool,
     /// Seconds of daemon + device (default 30; 3 with --quick).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = palpa::daemon::values::positive)]
     duration: Option<f64>,
     /// Ping-pong round trips for the floor (default 10 000; 1 000 with --quick).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = palpa::daemon::values::count)]
     pings: Option<u64>,
 }
 
@@ -143,7 +143,11 @@ fn daemon(prefix: &str, timings: &Path) -> Result<()> {
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     std::fs::write(timings, summary.timings_csv())
-        .with_context(|| format!("cannot write {}", timings.display()))
+        .with_context(|| format!("cannot write {}", timings.display()))?;
+    match summary.fatal {
+        Some(fatal) => Err(anyhow::anyhow!("the daemon stopped: {fatal}")),
+        None => Ok(()),
+    }
 }
 
 /// Summary of a latency sample set (µs).

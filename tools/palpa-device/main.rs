@@ -59,10 +59,10 @@ struct Args {
     #[arg(long)]
     script: Option<PathBuf>,
     /// Surface point the built-in motions work at, "x,y,z" in metres (the default scene's organ top).
-    #[arg(long, default_value = "0.0,0.0,0.0645", value_parser = parse_point)]
+    #[arg(long, default_value = "0.0,0.0,0.0645", allow_hyphen_values = true, value_parser = parse_point)]
     at: Vec3,
     /// Seconds to run.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_hyphen_values = true, value_parser = palpa::daemon::values::positive)]
     duration: f64,
     /// Send the next pose only when the last one is answered (with `palpa serve --lockstep`).
     #[arg(long)]
