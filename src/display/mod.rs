@@ -137,7 +137,8 @@ impl MeshEncoder {
     }
 }
 
-/// Why a mesh message cannot be applied.
+/// Why a mesh message cannot be applied. A refused message leaves the mesh held as it was (a
+/// [`MeshStreamError::Gap`] also marks it stale until the next keyframe).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum MeshStreamError {
     /// A delta arrived before any keyframe.
@@ -151,9 +152,48 @@ pub enum MeshStreamError {
         /// What the display holds.
         held: u64,
     },
-    /// The header and the bytes disagree.
-    #[error("malformed mesh message")]
-    Malformed,
+    /// The header's counts and the payload size disagree.
+    #[error(
+        "malformed mesh {kind}: its counts need {expected} payload bytes, the header says {declared} \
+         and the slice holds {available}"
+    )]
+    Size {
+        /// "keyframe" or "delta".
+        kind: &'static str,
+        /// Bytes the counts need.
+        expected: u64,
+        /// `payload_bytes` of the header.
+        declared: u32,
+        /// Bytes of the slice.
+        available: usize,
+    },
+    /// A triangle corner or a delta entry names a vertex the mesh does not have.
+    #[error(
+        "malformed mesh {kind}: entry {entry} refers to vertex {vertex}, but the mesh has {vertices} vertices"
+    )]
+    VertexIndex {
+        /// "keyframe" or "delta".
+        kind: &'static str,
+        /// Triangle (keyframe) or changed entry (delta), 0-based.
+        entry: u32,
+        /// The vertex it names.
+        vertex: u32,
+        /// Vertices of the mesh.
+        vertices: u32,
+    },
+    /// A delta for a mesh of another size than the one held.
+    #[error("malformed mesh delta: for {declared} vertices, but the display holds {held}")]
+    VertexCount {
+        /// The delta's `vertex_count`.
+        declared: u32,
+        /// Vertices held.
+        held: usize,
+    },
+    /// Neither a keyframe nor a delta.
+    #[error(
+        "unknown mesh message kind {0} (expected {MESH_KEYFRAME}, keyframe, or {MESH_DELTA}, delta)"
+    )]
+    UnknownKind(u32),
 }
 
 /// The client side: the mesh of one body as a display holds it.
@@ -169,37 +209,77 @@ pub struct DisplayMesh {
     pub ready: bool,
 }
 
+/// The little-endian u32 at `at`; callers have checked that `bytes` holds it.
 fn get_u32(bytes: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes(bytes[at..at + 4].try_into().expect("four bytes"))
+    let mut word = [0u8; 4];
+    word.copy_from_slice(&bytes[at..at + 4]);
+    u32::from_le_bytes(word)
 }
 
 fn get_f32(bytes: &[u8], at: usize) -> f32 {
-    f32::from_le_bytes(bytes[at..at + 4].try_into().expect("four bytes"))
+    f32::from_bits(get_u32(bytes, at))
+}
+
+/// Checks that `count` entries of `entry_bytes` fill the payload the header declares and that the
+/// slice holds it; returns the size.
+fn payload_size(
+    kind: &'static str,
+    count: u64,
+    entry_bytes: u64,
+    header: &MeshHeaderV1,
+    bytes: &[u8],
+) -> Result<usize, MeshStreamError> {
+    // u32 counts times at most 24 bytes cannot overflow u64.
+    let expected = count * entry_bytes;
+    if expected != u64::from(header.payload_bytes) || expected > bytes.len() as u64 {
+        return Err(MeshStreamError::Size {
+            kind,
+            expected,
+            declared: header.payload_bytes,
+            available: bytes.len(),
+        });
+    }
+    Ok(expected as usize)
 }
 
 impl DisplayMesh {
     /// Applies one message. A display joining late ignores deltas (with [`MeshStreamError::NoKeyframe`])
-    /// until a keyframe arrives; after a gap it waits for the next keyframe the same way.
+    /// until a keyframe arrives; after a gap it waits for the next keyframe the same way. Any bytes
+    /// are safe: a malformed message is refused with what is wrong and changes nothing, and nothing
+    /// is allocated beyond what the slice holds.
     pub fn apply(&mut self, header: &MeshHeaderV1, bytes: &[u8]) -> Result<(), MeshStreamError> {
-        let n = header.vertex_count as usize;
+        let n = header.vertex_count;
         match header.kind {
             MESH_KEYFRAME => {
-                let t = header.triangle_count as usize;
-                let need = n * KEYFRAME_VERTEX_BYTES + t * KEYFRAME_TRIANGLE_BYTES;
-                if bytes.len() < need || header.payload_bytes as usize != need {
-                    return Err(MeshStreamError::Malformed);
+                let t = header.triangle_count;
+                let per_vertex = KEYFRAME_VERTEX_BYTES as u64;
+                let per_triangle = KEYFRAME_TRIANGLE_BYTES as u64;
+                // Both counts are u32: the sum of their byte sizes fits u64 without overflow.
+                let size = u64::from(n) * per_vertex + u64::from(t) * per_triangle;
+                payload_size("keyframe", size, 1, header, bytes)?;
+                let base = n as usize * KEYFRAME_VERTEX_BYTES;
+                for triangle in 0..t {
+                    for k in 0..3 {
+                        let vertex = get_u32(bytes, base + 12 * triangle as usize + 4 * k);
+                        if vertex >= n {
+                            return Err(MeshStreamError::VertexIndex {
+                                kind: "keyframe",
+                                entry: triangle,
+                                vertex,
+                                vertices: n,
+                            });
+                        }
+                    }
                 }
-                self.positions = (0..n)
-                    .map(|i| [0, 1, 2].map(|k| get_f32(bytes, 12 * i + 4 * k)))
-                    .collect();
-                let base = n * KEYFRAME_VERTEX_BYTES;
-                self.triangles = (0..t)
-                    .map(|i| [0, 1, 2].map(|k| get_u32(bytes, base + 12 * i + 4 * k)))
-                    .collect();
-                if self.triangles.iter().flatten().any(|&v| v as usize >= n) {
-                    self.ready = false;
-                    return Err(MeshStreamError::Malformed);
-                }
+                self.positions.clear();
+                self.positions.extend(
+                    (0..n as usize).map(|i| [0, 1, 2].map(|k| get_f32(bytes, 12 * i + 4 * k))),
+                );
+                self.triangles.clear();
+                self.triangles.extend(
+                    (0..t as usize)
+                        .map(|i| [0, 1, 2].map(|k| get_u32(bytes, base + 12 * i + 4 * k))),
+                );
                 self.tick = header.tick;
                 self.ready = true;
                 Ok(())
@@ -215,25 +295,40 @@ impl DisplayMesh {
                         held: self.tick,
                     });
                 }
-                let c = header.changed_count as usize;
-                if n != self.positions.len()
-                    || bytes.len() < c * DELTA_ENTRY_BYTES
-                    || header.payload_bytes as usize != c * DELTA_ENTRY_BYTES
-                {
-                    return Err(MeshStreamError::Malformed);
+                if n as usize != self.positions.len() {
+                    return Err(MeshStreamError::VertexCount {
+                        declared: n,
+                        held: self.positions.len(),
+                    });
                 }
-                for e in 0..c {
+                let c = header.changed_count;
+                payload_size(
+                    "delta",
+                    u64::from(c),
+                    DELTA_ENTRY_BYTES as u64,
+                    header,
+                    bytes,
+                )?;
+                for entry in 0..c {
+                    let vertex = get_u32(bytes, entry as usize * DELTA_ENTRY_BYTES);
+                    if vertex >= n {
+                        return Err(MeshStreamError::VertexIndex {
+                            kind: "delta",
+                            entry,
+                            vertex,
+                            vertices: n,
+                        });
+                    }
+                }
+                for e in 0..c as usize {
                     let at = e * DELTA_ENTRY_BYTES;
                     let i = get_u32(bytes, at) as usize;
-                    if i >= n {
-                        return Err(MeshStreamError::Malformed);
-                    }
                     self.positions[i] = [0, 1, 2].map(|k| get_f32(bytes, at + 4 + 4 * k));
                 }
                 self.tick = header.tick;
                 Ok(())
             }
-            _ => Err(MeshStreamError::Malformed),
+            kind => Err(MeshStreamError::UnknownKind(kind)),
         }
     }
 }
@@ -353,6 +448,11 @@ impl MeshSchedule {
         }
     }
 
+    /// Ticks between two mesh messages of a body (keyframes may come in between).
+    pub fn display_every(&self) -> u64 {
+        self.display_every
+    }
+
     /// Largest message in bytes.
     pub fn max_message_bytes(&self) -> usize {
         self.scratch.len()
@@ -385,7 +485,7 @@ impl MeshSchedule {
         }
         let keyframe = keyframe_due;
         if keyframe {
-            self.next_keyframe = tick + self.keyframe_every;
+            self.next_keyframe = tick.saturating_add(self.keyframe_every);
         }
         for (encoder, body) in self.encoders.iter_mut().zip(&world.bodies) {
             let s = &body.surface;

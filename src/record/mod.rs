@@ -10,6 +10,7 @@ pub mod proto {
 pub const DESCRIPTOR_SET: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/palpa_descriptor_set.bin"));
 
+pub mod reader;
 pub mod recorder;
 pub mod replay;
 pub mod visual;

@@ -10,11 +10,13 @@ use std::path::{Path, PathBuf};
 use prost::Message;
 
 use super::proto;
+use super::reader::{Damage, Item, Problem, read_records};
 use super::recorder::{feedback_message, mesh_message};
 use crate::Vec3;
 use crate::daemon::feedback_payload;
 use crate::daemon::sink::event;
 use crate::display::MeshSchedule;
+use crate::ipc::payload::{MESH_DELTA, MESH_KEYFRAME, MeshHeaderV1};
 use crate::scene::parse_scene;
 use crate::tool::{ToolInput, ToolPose};
 use crate::world::World;
@@ -41,54 +43,112 @@ pub struct Recording {
     pub messages: Vec<RecordedMessage>,
     /// The file ended properly (footer read); false for a file cut short.
     pub complete: bool,
+    /// Why reading stopped before the footer, when it stopped at damaged bytes (a file that simply
+    /// ends after a whole record has none).
+    pub damage: Option<Damage>,
 }
 
-/// Reads a recording from its bytes; a damaged tail ends the reading (the recording is then marked
-/// incomplete), damage before the first message is an error.
-pub fn read_recording(bytes: &[u8]) -> Result<Recording, String> {
-    let options = mcap::read::Options::IgnoreEndMagic;
-    let reader = mcap::read::ChunkFlattener::new_with_options(bytes, options.into())
-        .map_err(|e| e.to_string())?;
+/// A recording file that cannot be read.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RecordingError {
+    /// The file cannot be read at all.
+    #[error("cannot read {path}: {reason}")]
+    Io {
+        /// The path as given.
+        path: String,
+        /// The operating system's reason.
+        reason: String,
+    },
+    /// The bytes are not a readable recording (nothing usable before the damage).
+    #[error("{path}: {damage}")]
+    Damaged {
+        /// The path as given.
+        path: String,
+        /// Where and what.
+        damage: Damage,
+    },
+}
+
+/// Reads a recording from its bytes. Damage after the scene message ends the reading: what came
+/// before is kept, the recording is marked incomplete and [`Recording::damage`] says where and why.
+/// Damage before the scene message is an error.
+pub fn read_recording(bytes: &[u8]) -> Result<Recording, Damage> {
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
     let mut recording = Recording::default();
     let mut scene = None;
-    for record in reader {
-        let record = match record {
-            Ok(r) => r,
-            Err(_) => break,
-        };
-        match record {
-            mcap::records::Record::Channel(channel) => {
-                topics.insert(channel.id, channel.topic.clone());
+    let result = read_records(bytes, |item| {
+        match item {
+            Item::Channel { id, topic } => {
+                topics.insert(id, topic.to_string());
             }
-            mcap::records::Record::Message { header, data } => {
-                let topic = topics.get(&header.channel_id).cloned().unwrap_or_default();
+            Item::Message {
+                channel_id,
+                log_time,
+                data,
+            } => {
+                let topic = topics
+                    .get(&channel_id)
+                    .ok_or(Problem::UnknownChannel {
+                        channel: channel_id,
+                    })?
+                    .clone();
                 if topic == "/palpa/scene" && scene.is_none() {
-                    scene = Some(proto::Scene::decode(&data[..]).map_err(|e| e.to_string())?);
+                    scene = Some(proto::Scene::decode(data).map_err(|e| Problem::Scene {
+                        reason: e.to_string(),
+                    })?);
                 }
                 recording.messages.push(RecordedMessage {
                     topic,
-                    log_time: header.log_time,
-                    data: data.into_owned(),
+                    log_time,
+                    data: data.to_vec(),
                 });
             }
-            mcap::records::Record::Attachment { header, data, .. } => {
+            Item::Attachment { name, data } => {
                 recording
                     .attachments
-                    .push((header.name.clone(), data.into_owned()));
+                    .push((name.to_string(), data.to_vec()));
             }
-            mcap::records::Record::Footer(_) => recording.complete = true,
-            _ => {}
+            Item::Footer => recording.complete = true,
+        }
+        Ok(())
+    });
+    match (result, scene) {
+        (Ok(()), Some(scene)) => recording.scene = scene,
+        (Err(damage), Some(scene)) => {
+            recording.scene = scene;
+            recording.complete = false;
+            recording.damage = Some(damage);
+        }
+        (Err(damage), None) => return Err(damage),
+        (Ok(()), None) => {
+            return Err(Damage {
+                offset: bytes.len() as u64,
+                problem: Problem::NoScene,
+            });
         }
     }
-    recording.scene = scene.ok_or("the recording has no /palpa/scene message")?;
     Ok(recording)
 }
 
-/// Reads a recording file.
-pub fn read_recording_file(path: &Path) -> Result<Recording, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    read_recording(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+/// Reads a recording file (a regular file: a device or a pipe is refused rather than read
+/// without end).
+pub fn read_recording_file(path: &Path) -> Result<Recording, RecordingError> {
+    let io = |e: std::io::Error| RecordingError::Io {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    };
+    let metadata = std::fs::metadata(path).map_err(io)?;
+    if !metadata.is_file() {
+        return Err(RecordingError::Io {
+            path: path.display().to_string(),
+            reason: "not a regular file".into(),
+        });
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    read_recording(&bytes).map_err(|damage| RecordingError::Damaged {
+        path: path.display().to_string(),
+        damage,
+    })
 }
 
 /// Message counts per topic and session figures.
@@ -112,6 +172,13 @@ pub struct SessionSummary {
     pub rejects: u64,
     /// The file ended properly.
     pub complete: bool,
+    /// Where and why reading stopped early, if it stopped at damaged bytes.
+    pub damage: Option<Damage>,
+}
+
+/// The tick of a log time (saturating: a damaged time or step gives a large tick, never a panic).
+fn tick_at(log_time: u64, dt: f64) -> u64 {
+    (log_time as f64 / (dt * 1e9)).round() as u64
 }
 
 /// Summarises a recording.
@@ -119,13 +186,12 @@ pub fn summarise(recording: &Recording) -> SessionSummary {
     let mut s = SessionSummary {
         tools: recording.scene.tools.clone(),
         complete: recording.complete,
+        damage: recording.damage.clone(),
         ..SessionSummary::default()
     };
     for m in &recording.messages {
         *s.messages.entry(m.topic.clone()).or_default() += 1;
-        s.ticks = s
-            .ticks
-            .max((m.log_time as f64 / (recording.scene.dt * 1e9)).round() as u64);
+        s.ticks = s.ticks.max(tick_at(m.log_time, recording.scene.dt));
         if m.topic.ends_with("/feedback")
             && let Ok(f) = proto::Feedback::decode(&m.data[..])
         {
@@ -186,37 +252,64 @@ pub struct VerifyReport {
     pub digest: u64,
 }
 
+/// Deepest `..` an attachment may climb (a scene's meshes a few folders up).
+const MAX_ATTACHMENT_DEPTH: usize = 16;
+
+/// How far above its scene an attachment name climbs (`../../m.obj`: 2, `a/../../m.obj`: 1), or
+/// `None` for a name that cannot be unpacked safely (absolute, empty, or too deep).
+fn attachment_depth(name: &str) -> Option<usize> {
+    let mut level: isize = 0;
+    let mut lowest: isize = 0;
+    let mut parts = 0;
+    for component in Path::new(name).components() {
+        match component {
+            std::path::Component::Normal(_) => {
+                level += 1;
+                parts += 1;
+            }
+            std::path::Component::ParentDir => level -= 1,
+            std::path::Component::CurDir => {}
+            std::path::Component::RootDir | std::path::Component::Prefix(_) => return None,
+        }
+        lowest = lowest.min(level);
+    }
+    let depth = lowest.unsigned_abs();
+    (parts > 0 && level > lowest && depth <= MAX_ATTACHMENT_DEPTH).then_some(depth)
+}
+
 /// Unpacks the scene and its meshes into `dir` (the scene nested deep enough for every relative
-/// mesh path to stay inside `dir`) and loads it.
-fn rebuild_scene(recording: &Recording, dir: &Path) -> Result<crate::scene::Scene, String> {
-    let depth = recording
-        .attachments
-        .iter()
-        .map(|(name, _)| {
-            Path::new(name)
-                .components()
-                .take_while(|c| matches!(c, std::path::Component::ParentDir))
-                .count()
-        })
-        .max()
-        .unwrap_or(0);
+/// mesh path to stay inside `dir`) and loads it. Attachment names are checked first: a recording
+/// cannot write outside `dir`.
+fn rebuild_scene(recording: &Recording, dir: &Path) -> Result<crate::scene::Scene, VerifyError> {
+    let mut depth = 0;
+    for (name, _) in &recording.attachments {
+        match attachment_depth(name) {
+            Some(d) => depth = depth.max(d),
+            None => return Err(VerifyError::AttachmentName { name: name.clone() }),
+        }
+    }
     let mut scene_dir = dir.to_path_buf();
     for k in 0..depth {
         scene_dir.push(format!("s{k}"));
     }
-    std::fs::create_dir_all(&scene_dir).map_err(|e| e.to_string())?;
+    let unpack = |name: &str, e: std::io::Error| VerifyError::Unpack {
+        name: name.to_string(),
+        dir: dir.display().to_string(),
+        reason: e.to_string(),
+    };
+    std::fs::create_dir_all(&scene_dir).map_err(|e| unpack("(scene folder)", e))?;
     for (name, data) in &recording.attachments {
         if name == "scene.toml" {
             continue;
         }
         let target: PathBuf = scene_dir.join(name);
         if let Some(parent) = target.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| e.to_string())?;
+            std::fs::create_dir_all(parent).map_err(|e| unpack(name, e))?;
         }
-        std::fs::write(&target, data).map_err(|e| e.to_string())?;
+        std::fs::write(&target, data).map_err(|e| unpack(name, e))?;
     }
     parse_scene(&recording.scene.source, &recording.scene.name, &scene_dir)
-        .map_err(|e| e.to_string())
+        .map_err(|e| VerifyError::Scene(e.to_string()))
 }
 
 fn fnv(digest: &mut u64, bytes: &[u8]) {
@@ -261,9 +354,16 @@ pub fn verify(
     work_dir: &Path,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<VerifyReport, VerifyError> {
-    let scene = rebuild_scene(recording, work_dir).map_err(VerifyError::Scene)?;
-    let mut world = World::from_scene(&scene);
     let session = &recording.scene;
+    check_session(session)?;
+    let scene = rebuild_scene(recording, work_dir)?;
+    if scene.world.dt.to_bits() != session.dt.to_bits() {
+        return Err(VerifyError::Session(format!(
+            "the scene steps at dt = {} s but the session was recorded at {} s",
+            scene.world.dt, session.dt
+        )));
+    }
+    let mut world = World::from_scene(&scene);
     let mut meshes = MeshSchedule::new(&world, session.display_rate_hz, session.keyframe_every_s);
     let serve_mode = session.mode == "serve";
     let tool_index: BTreeMap<String, usize> = world
@@ -286,19 +386,30 @@ pub fn verify(
     let mut outputs: Vec<&RecordedMessage> = Vec::new();
     for m in &recording.messages {
         if m.topic.ends_with("/input") {
-            let i = proto::ToolInput::decode(&m.data[..])
-                .map_err(|e| VerifyError::Scene(e.to_string()))?;
+            let i: proto::ToolInput = decode_message(m)?;
+            check_input(&i).map_err(|reason| MessageError::new(m, reason))?;
             inputs.entry(i.tick).or_default().push(i);
         } else if m.topic == "/palpa/events" {
-            let e =
-                proto::Event::decode(&m.data[..]).map_err(|e| VerifyError::Scene(e.to_string()))?;
+            let e: proto::Event = decode_message(m)?;
             events.entry(e.tick).or_default().push(e);
         } else if m.topic.ends_with("/feedback") || m.topic.starts_with("/palpa/mesh/") {
             outputs.push(m);
         }
     }
-    let tick_of = |m: &RecordedMessage| (m.log_time as f64 / (session.dt * 1e9)).round() as u64;
+    let tick_of = |m: &RecordedMessage| tick_at(m.log_time, session.dt);
     let last = outputs.last().map_or(0, |m| tick_of(m));
+    // Every body sends a mesh message every `display_every` ticks and every tool a feedback message
+    // every tick, so the outputs of a session of `last` ticks are at least `last / display_every`:
+    // a last tick beyond that is a damaged log time, which would otherwise be replayed for ages.
+    let display_every = meshes.display_every();
+    let covered = (outputs.len() as u64 + 1).saturating_mul(display_every);
+    if last > covered {
+        return Err(VerifyError::Session(format!(
+            "the last output message is at tick {last}, but {} output messages at one per {display_every} \
+             ticks cover at most {covered} ticks: a damaged log time",
+            outputs.len()
+        )));
+    }
     let tools = world.tools.len();
     let mut connected: Vec<bool> = world.tools.iter().map(|t| t.active).collect();
     let mut echo = vec![(0u64, 0u64); tools];
@@ -394,14 +505,21 @@ pub fn verify(
     while world.tick < last {
         let tick = world.tick;
         let mut rejected = vec![false; tools];
-        if let Some(list) = events.get(&tick) {
-            for e in list.iter().filter(|e| e.kind == event::RESET) {
-                let _ = e;
-                world = World::from_scene(&scene);
-                drive(&mut world);
-                meshes.reset(&world);
-                connected = world.tools.iter().map(|t| t.active).collect();
-            }
+        if report.ticks >= covered {
+            return Err(VerifyError::Session(format!(
+                "{} ticks replayed and the outputs account for at most {covered}: damaged log times or resets",
+                report.ticks
+            )));
+        }
+        // A reset is applied once: the world's tick starts again from 0 and passes this tick again.
+        if let Some(list) = events.get_mut(&tick)
+            && list.iter().any(|e| e.kind == event::RESET)
+        {
+            list.retain(|e| e.kind != event::RESET);
+            world = World::from_scene(&scene);
+            drive(&mut world);
+            meshes.reset(&world);
+            connected = world.tools.iter().map(|t| t.active).collect();
         }
         if let Some(list) = inputs.get(&tick) {
             for input in list {
@@ -479,20 +597,113 @@ pub fn verify(
 }
 
 /// Why a replay failed.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum VerifyError {
-    /// The scene could not be rebuilt, or a message could not be decoded.
+    /// The scene could not be rebuilt from the recording.
+    #[error("cannot replay: the recorded scene does not load: {0}")]
     Scene(String),
+    /// An attachment's name would unpack outside the work folder.
+    #[error(
+        "cannot replay: attachment name {name:?} is not a relative path within {MAX_ATTACHMENT_DEPTH} folders of the scene"
+    )]
+    AttachmentName {
+        /// The name as recorded.
+        name: String,
+    },
+    /// An attachment could not be written to the work folder.
+    #[error("cannot replay: cannot unpack attachment {name:?} into {dir}: {reason}")]
+    Unpack {
+        /// The attachment.
+        name: String,
+        /// The work folder.
+        dir: String,
+        /// The operating system's reason.
+        reason: String,
+    },
+    /// A recorded message cannot be decoded or is not a value the daemon sends.
+    #[error("cannot replay: {0}")]
+    Message(#[from] MessageError),
+    /// The session's parameters or log times cannot be those of a real session.
+    #[error("cannot replay: {0}")]
+    Session(String),
     /// Replay produced a different message.
+    #[error("{0}")]
     Differs(Difference),
 }
 
-impl std::fmt::Display for VerifyError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            VerifyError::Scene(e) => write!(f, "cannot replay: {e}"),
-            VerifyError::Differs(d) => write!(f, "{d}"),
+/// A recorded message that cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{topic} message at log time {log_time} ns: {reason}")]
+pub struct MessageError {
+    /// Its topic.
+    pub topic: String,
+    /// Its log time (ns).
+    pub log_time: u64,
+    /// What is wrong.
+    pub reason: String,
+}
+
+impl MessageError {
+    fn new(m: &RecordedMessage, reason: String) -> Self {
+        Self {
+            topic: m.topic.clone(),
+            log_time: m.log_time,
+            reason,
         }
+    }
+}
+
+/// Decodes a recorded message as `M`.
+fn decode_message<M: Message + Default>(m: &RecordedMessage) -> Result<M, MessageError> {
+    M::decode(&m.data[..]).map_err(|e| {
+        MessageError::new(
+            m,
+            format!(
+                "cannot be decoded as palpa.{}: {e}",
+                message_type_of(&m.topic)
+            ),
+        )
+    })
+}
+
+/// The session parameters replay depends on are those a session can have.
+fn check_session(session: &proto::Scene) -> Result<(), VerifyError> {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    let problem = if !positive(session.dt) {
+        Some(format!("dt = {} s", session.dt))
+    } else if !positive(session.display_rate_hz) {
+        Some(format!("display rate = {} Hz", session.display_rate_hz))
+    } else if !positive(session.keyframe_every_s) || session.keyframe_every_s / session.dt > 1e15 {
+        Some(format!("keyframes every {} s", session.keyframe_every_s))
+    } else {
+        None
+    };
+    match problem {
+        Some(p) => Err(VerifyError::Session(format!(
+            "the recorded session has {p}, which no session can have: a damaged scene message"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// A recorded input is a pose the daemon could have accepted: finite numbers and a unit
+/// quaternion (within a loose 10⁻² — the daemon's own tolerance is tighter).
+fn check_input(input: &proto::ToolInput) -> Result<(), String> {
+    let p = input.position.unwrap_or_default();
+    let q = input.orientation.unwrap_or_default();
+    let numbers = [p.x, p.y, p.z, q.w, q.x, q.y, q.z, input.jaw];
+    let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+    if numbers.iter().all(|x| x.is_finite()) && (norm - 1.0).abs() <= 1e-2 {
+        Ok(())
+    } else {
+        Err(format!(
+            "input of tool {:?} at tick {} is not a pose the daemon accepts (position {:?}, \
+             quaternion norm {norm}, jaw {}): damaged message",
+            input.tool,
+            input.tick,
+            [p.x, p.y, p.z],
+            input.jaw
+        ))
     }
 }
 
@@ -561,5 +772,84 @@ pub fn message_type_of(topic: &str) -> &'static str {
         "/palpa/events" => "Event",
         t if t.ends_with("/input") => "ToolInput",
         _ => "Feedback",
+    }
+}
+
+/// The IPC form (header and payload bytes, in the layout of `proto/palpa_ipc.h`) of a recorded mesh
+/// message, checked so that a display can apply it: whole vertices, triangle corners and changed
+/// vertices within the vertex count. `payload` is cleared and filled.
+pub fn mesh_payload(
+    m: &RecordedMessage,
+    payload: &mut Vec<u8>,
+) -> Result<MeshHeaderV1, MessageError> {
+    payload.clear();
+    let bad = |reason: String| MessageError::new(m, reason);
+    let count = |n: usize, what: &str| {
+        u32::try_from(n).map_err(|_| bad(format!("{n} {what} do not fit the IPC header")))
+    };
+    if m.topic == "/palpa/mesh/keyframe" {
+        let k: proto::MeshKeyframe = decode_message(m)?;
+        if k.positions.len() % 3 != 0 || k.triangles.len() % 3 != 0 {
+            return Err(bad(format!(
+                "{} coordinates and {} triangle corners: not whole vertices and triangles",
+                k.positions.len(),
+                k.triangles.len()
+            )));
+        }
+        let vertices = count(k.positions.len() / 3, "vertices")?;
+        if let Some(v) = k.triangles.iter().find(|&&v| v >= vertices) {
+            return Err(bad(format!(
+                "a triangle refers to vertex {v} of {vertices}"
+            )));
+        }
+        for x in &k.positions {
+            payload.extend_from_slice(&x.to_le_bytes());
+        }
+        for x in &k.triangles {
+            payload.extend_from_slice(&x.to_le_bytes());
+        }
+        Ok(MeshHeaderV1 {
+            kind: MESH_KEYFRAME,
+            body: k.body,
+            tick: k.tick,
+            base_tick: k.tick,
+            vertex_count: vertices,
+            triangle_count: count(k.triangles.len() / 3, "triangles")?,
+            changed_count: 0,
+            payload_bytes: count(payload.len(), "payload bytes")?,
+        })
+    } else if m.topic == "/palpa/mesh/delta" {
+        let d: proto::MeshDelta = decode_message(m)?;
+        if d.positions.len() != 3 * d.vertices.len() {
+            return Err(bad(format!(
+                "{} changed vertices but {} coordinates",
+                d.vertices.len(),
+                d.positions.len()
+            )));
+        }
+        if let Some(v) = d.vertices.iter().find(|&&v| v >= d.vertex_count) {
+            return Err(bad(format!(
+                "a changed vertex {v} of {} vertices",
+                d.vertex_count
+            )));
+        }
+        for (v, p) in d.vertices.iter().zip(d.positions.chunks_exact(3)) {
+            payload.extend_from_slice(&v.to_le_bytes());
+            for x in p {
+                payload.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        Ok(MeshHeaderV1 {
+            kind: MESH_DELTA,
+            body: d.body,
+            tick: d.tick,
+            base_tick: d.base_tick,
+            vertex_count: d.vertex_count,
+            triangle_count: 0,
+            changed_count: count(d.vertices.len(), "changed vertices")?,
+            payload_bytes: count(payload.len(), "payload bytes")?,
+        })
+    } else {
+        Err(bad("not a mesh message".into()))
     }
 }

@@ -97,6 +97,24 @@ pub enum MeshError {
         /// The signed volume found.
         volume: f64,
     },
+    /// The coordinates are too large for the checks' arithmetic (volume or extent overflow).
+    #[error("the mesh is too large: its extent ({extent:e} m) or volume overflows")]
+    TooLarge {
+        /// The bounding-box diagonal.
+        extent: f64,
+    },
+    /// A line of the OBJ file is wrong.
+    #[error("{path}:{line}:{column}: {message}")]
+    ObjSyntax {
+        /// File path as given.
+        path: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column (characters).
+        column: usize,
+        /// What is wrong and what was expected.
+        message: String,
+    },
     /// The OBJ file could not be read.
     #[error("cannot read OBJ file {path}: {reason}")]
     Obj {
@@ -197,6 +215,9 @@ impl SurfaceMesh {
         self.check_manifold()?;
         let volume = self.signed_volume();
         let extent = self.bounding_diagonal();
+        if !volume.is_finite() || !extent.is_finite() || !self.area().is_finite() {
+            return Err(MeshError::TooLarge { extent });
+        }
         if volume.abs() <= 1e-12 * extent.powi(3) {
             return Err(MeshError::NoVolume { volume });
         }
@@ -589,14 +610,48 @@ pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
         path: path.display().to_string(),
         reason,
     };
-    let file = std::fs::File::open(path).map_err(|e| obj_error(e.to_string()))?;
-    let mut reader = std::io::BufReader::new(file);
+    // A device or a pipe named as a mesh would be read without end.
+    let metadata = std::fs::metadata(path).map_err(|e| obj_error(e.to_string()))?;
+    if !metadata.is_file() {
+        return Err(obj_error("not a regular file".into()));
+    }
+    let bytes = std::fs::read(path).map_err(|e| obj_error(e.to_string()))?;
+    parse_obj(&bytes, &path.display().to_string())
+}
+
+/// Reads OBJ text from bytes; `name` is used in messages. The text is checked line by line first
+/// (UTF-8, numbers where numbers belong, every face index within the vertices, texture coordinates
+/// and normals the file defines), so that an error names its line and column and the OBJ reader
+/// only ever sees indices it can resolve.
+pub fn parse_obj(bytes: &[u8], name: &str) -> Result<SurfaceMesh, MeshError> {
+    let syntax = |line: usize, column: usize, message: String| MeshError::ObjSyntax {
+        path: name.to_string(),
+        line,
+        column,
+        message,
+    };
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let before = &bytes[..e.valid_up_to()];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = before.len()
+            - before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |i| i + 1)
+            + 1;
+        syntax(line, column, "not UTF-8 text".into())
+    })?;
+    check_obj_text(text).map_err(|(line, column, message)| syntax(line, column, message))?;
+    let obj_error = |reason: String| MeshError::Obj {
+        path: name.to_string(),
+        reason,
+    };
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
         ..Default::default()
     };
-    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| {
+    let (models, _materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
     .map_err(|e| obj_error(e.to_string()))?;
@@ -605,23 +660,140 @@ pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
         triangles: Vec::new(),
     };
     for model in &models {
-        let base = mesh.positions_in_body.len() as u32;
+        let base = u32::try_from(mesh.positions_in_body.len())
+            .map_err(|_| obj_error("more than 2³² vertices".into()))?;
         let m = &model.mesh;
         mesh.positions_in_body.extend(
             m.positions
                 .chunks_exact(3)
                 .map(|p| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
         );
-        mesh.triangles.extend(
-            m.indices
-                .chunks_exact(3)
-                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-        );
+        for t in m.indices.chunks_exact(3) {
+            let corners = [t[0], t[1], t[2]].map(|v| v.checked_add(base));
+            let [Some(a), Some(b), Some(c)] = corners else {
+                return Err(obj_error("more than 2³² vertices".into()));
+            };
+            mesh.triangles.push([a, b, c]);
+        }
     }
     if mesh.triangles.is_empty() {
         return Err(obj_error("no faces found".into()));
     }
     Ok(mesh)
+}
+
+/// The line-by-line check of OBJ text: `(line, column, what is wrong)` of the first problem.
+fn check_obj_text(text: &str) -> Result<(), (usize, usize, String)> {
+    // Positive face indices may refer forward (to vertices later in the file); negative ones count
+    // back from the last vertex read.
+    let count = |keyword: &str| {
+        text.lines()
+            .filter(|l| l.split_whitespace().next() == Some(keyword))
+            .count()
+    };
+    let totals = [count("v"), count("vt"), count("vn")];
+    let mut so_far = [0usize; 3];
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let Some(keyword) = words.next() else {
+            continue;
+        };
+        let column = |word: &str| {
+            let offset = word.as_ptr() as usize - line.as_ptr() as usize;
+            line[..offset].chars().count() + 1
+        };
+        let at = |word: &str, message: String| (number + 1, column(word), message);
+        let numbers = |needed: usize, what: &str, words: &mut std::str::SplitWhitespace<'_>| {
+            for k in 0..needed {
+                match words.next() {
+                    None => {
+                        return Err(at(
+                            keyword,
+                            format!("`{keyword}` needs {needed} numbers ({what}), found {k}"),
+                        ));
+                    }
+                    Some(word) if word.parse::<f32>().is_err() => {
+                        return Err(at(
+                            word,
+                            format!("expected a number ({what}), found {word:?}"),
+                        ));
+                    }
+                    Some(_) => {}
+                }
+            }
+            Ok(())
+        };
+        match keyword {
+            "v" => {
+                numbers(3, "x y z", &mut words)?;
+                let rest: Vec<&str> = words.collect();
+                match rest.len() {
+                    0 => {}
+                    1 if rest[0].parse::<f32>().is_ok_and(|w| w != 0.0) => {}
+                    3 if rest.iter().all(|w| w.parse::<f32>().is_ok()) => {}
+                    _ => {
+                        return Err(at(
+                            rest[0],
+                            "after x y z, `v` takes a weight w ≠ 0 or a colour r g b".into(),
+                        ));
+                    }
+                }
+                so_far[0] += 1;
+            }
+            "vt" => {
+                numbers(2, "u v", &mut words)?;
+                so_far[1] += 1;
+            }
+            "vn" => {
+                numbers(3, "x y z", &mut words)?;
+                so_far[2] += 1;
+            }
+            "f" | "l" => {
+                let mut corners = 0;
+                for word in words {
+                    corners += 1;
+                    let parts: Vec<&str> = word.split('/').collect();
+                    if parts.len() > 3 {
+                        return Err(at(
+                            word,
+                            format!("expected a corner v, v/vt, v//vn or v/vt/vn, found {word:?}"),
+                        ));
+                    }
+                    for (k, part) in parts.iter().enumerate() {
+                        if part.is_empty() && k > 0 {
+                            continue;
+                        }
+                        let what = ["vertex", "texture coordinate", "normal"][k];
+                        let index: i64 = part.parse().map_err(|_| {
+                            at(word, format!("expected a {what} index, found {part:?}"))
+                        })?;
+                        let valid = if index > 0 {
+                            index as u64 <= totals[k] as u64
+                        } else {
+                            index != 0 && index.unsigned_abs() <= so_far[k] as u64
+                        };
+                        if !valid {
+                            return Err(at(
+                                word,
+                                format!(
+                                    "{what} index {index} out of range: the file defines {} ({} so far)",
+                                    totals[k], so_far[k]
+                                ),
+                            ));
+                        }
+                    }
+                }
+                if keyword == "f" && corners < 3 {
+                    return Err(at(
+                        keyword,
+                        format!("a face needs at least 3 corners, found {corners}"),
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn orient_outward(mesh: &mut SurfaceMesh) {

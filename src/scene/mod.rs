@@ -26,6 +26,11 @@ use schema::*;
 /// The scene a new user gets when they give none: an organ-like body dropped onto a table.
 pub const DEFAULT_SCENE: &str = include_str!("../../scenes/organ.toml");
 
+/// Most vertices the meshes of one scene may have together: far past what can be stepped in 1 ms,
+/// and a bound on the memory a short scene file can ask for (a few lines of bodies with 7
+/// subdivisions each would otherwise allocate without limit).
+pub const MAX_SCENE_VERTICES: usize = 1 << 20;
+
 /// Parameters of the world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WorldParams {
@@ -176,8 +181,9 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
 
     let mut assets = Vec::new();
     let mut bodies: Vec<BodySpec> = Vec::with_capacity(file.body.len());
+    let mut vertices = 0;
     for (index, body) in file.body.iter().enumerate() {
-        let spec = ctx.body(body, index, &world, dir, &mut assets)?;
+        let spec = ctx.body(body, index, &world, dir, &mut assets, &mut vertices)?;
         ctx.unique(
             bodies.iter().map(|b| &b.name),
             &spec.name,
@@ -248,7 +254,10 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn error(&self, span: Range<usize>, message: String) -> SceneError {
-        let offset = span.start.min(self.text.len());
+        let mut offset = span.start.min(self.text.len());
+        while !self.text.is_char_boundary(offset) {
+            offset -= 1;
+        }
         let before = &self.text[..offset];
         let line = before.matches('\n').count() + 1;
         let line_start = before.rfind('\n').map_or(0, |i| i + 1);
@@ -568,6 +577,7 @@ impl Ctx<'_> {
         world: &WorldParams,
         dir: &Path,
         assets: &mut Vec<(String, PathBuf)>,
+        vertices: &mut usize,
     ) -> Result<BodySpec, SceneError> {
         let b = body.get_ref();
         let name = b
@@ -577,7 +587,7 @@ impl Ctx<'_> {
         let Some(mesh_section) = &b.mesh else {
             return Err(self.error(body.span(), format!("body `{name}` needs a `mesh`")));
         };
-        let (mesh, mesh_source) = self.mesh(mesh_section, dir, assets)?;
+        let (mesh, mesh_source) = self.mesh(mesh_section, dir, assets, vertices)?;
         let d = BodyParams::default();
         let params = BodyParams {
             surface_mass: self.number(
@@ -662,6 +672,7 @@ impl Ctx<'_> {
         section: &Spanned<MeshSection>,
         dir: &Path,
         assets: &mut Vec<(String, PathBuf)>,
+        vertices: &mut usize,
     ) -> Result<(SurfaceMesh, String), SceneError> {
         let m = section.get_ref();
         let given = [
@@ -711,9 +722,26 @@ impl Ctx<'_> {
                     )),
                 }
             };
+        // Primitives are counted before they are built, OBJ meshes (bounded by their file) after.
+        let mut budget = |added: usize| -> Result<(), SceneError> {
+            *vertices = vertices.saturating_add(added);
+            if *vertices > MAX_SCENE_VERTICES {
+                return Err(self.error(
+                    section.span(),
+                    format!(
+                        "the scene's meshes would have {} vertices with this one ({added}), more than \
+                         the {MAX_SCENE_VERTICES} a scene may have",
+                        *vertices
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        let icosphere_vertices = |s: u32| 10 * 4usize.pow(s) + 2;
         let (mut mesh, source) = if let Some(ico) = &m.icosphere {
             let radius = self.number(Some(&ico.get_ref().radius), 0.0, "radius", Rule::Positive)?;
             let subdivisions = check_subdivisions(&ico.get_ref().subdivisions, 2, 7)?;
+            budget(icosphere_vertices(subdivisions))?;
             (
                 mesh::icosphere(radius, subdivisions),
                 format!("icosphere r={radius} s={subdivisions}"),
@@ -721,6 +749,7 @@ impl Ctx<'_> {
         } else if let Some(ell) = &m.ellipsoid {
             let radii = self.positive_vector(&ell.get_ref().radii, "radii")?;
             let subdivisions = check_subdivisions(&ell.get_ref().subdivisions, 2, 7)?;
+            budget(icosphere_vertices(subdivisions))?;
             let mut mesh = mesh::icosphere(1.0, subdivisions);
             mesh.scale(radii);
             (
@@ -745,6 +774,9 @@ impl Ctx<'_> {
                     n
                 }
             };
+            // Grid points on the surface: all of them less the interior ones.
+            let [a, b, c] = subdivisions.map(|k| k as usize);
+            budget((a + 2) * (b + 2) * (c + 2) - a * b * c)?;
             (
                 mesh::box_mesh_per_axis(size, subdivisions),
                 format!("box size={:?} s={subdivisions:?}", size.as_slice()),
@@ -754,6 +786,7 @@ impl Ctx<'_> {
             let path = dir.join(obj.get_ref());
             let mesh =
                 mesh::load_obj(&path).map_err(|e| self.error(obj.span(), format!("mesh: {e}")))?;
+            budget(mesh.vertex_count())?;
             assets.push((obj.get_ref().clone(), path));
             (mesh, format!("obj {}", obj.get_ref()))
         };

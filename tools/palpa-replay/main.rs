@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, anyhow, bail};
 use clap::Parser;
-use palpa::record::replay::{VerifyError, read_recording_file, summarise, verify};
+use palpa::record::replay::{VerifyError, mesh_payload, read_recording_file, summarise, verify};
 
 #[derive(Parser)]
 #[command(
@@ -57,6 +57,7 @@ fn main() -> Result<()> {
             let value = serde_json::json!({
                 "file": args.file.display().to_string(),
                 "complete": s.complete,
+                "damage": s.damage.as_ref().map(|d| d.to_string()),
                 "duration_s": s.duration_s,
                 "ticks": s.ticks,
                 "tools": s.tools,
@@ -73,10 +74,10 @@ fn main() -> Result<()> {
                 args.file.display(),
                 s.duration_s,
                 s.ticks,
-                if s.complete {
-                    ""
-                } else {
-                    ", file cut short (read up to its last complete chunk)"
+                match (&s.damage, s.complete) {
+                    (_, true) => String::new(),
+                    (None, false) => ", file cut short (read up to its last complete chunk)".into(),
+                    (Some(d), false) => format!(", read up to damaged bytes {d}"),
                 }
             );
             println!("  tools: {}", s.tools.join(", "));
@@ -128,8 +129,11 @@ fn main() -> Result<()> {
     Ok(())
 }
 
+/// Largest step between the log times of consecutive messages --play accepts (1 min).
+const MAX_LOG_TIME_JUMP_NS: u64 = 60_000_000_000;
+
 fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()> {
-    use palpa::ipc::payload::{MESH_DELTA, MESH_KEYFRAME, MeshHeaderV1, ToolFeedbackV1};
+    use palpa::ipc::payload::ToolFeedbackV1;
     use palpa::ipc::services::{create_node, feedback_service, mesh_service};
     use palpa::record::proto;
     use prost::Message;
@@ -145,14 +149,18 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
             .map_err(|e| anyhow!("{e}"))?;
         feedback.insert(format!("/palpa/tool/{tool}/feedback"), publisher);
     }
-    let largest = recording
-        .scene
-        .body_nodes
+    // Every mesh message is checked (and its size found) before anything is published; the
+    // largest sizes the shared-memory slice, so a damaged count cannot size it.
+    let mut bytes = Vec::new();
+    let mut largest = 1;
+    for m in recording
+        .messages
         .iter()
-        .zip(&recording.scene.body_triangles)
-        .map(|(&n, &t)| palpa::display::max_message_bytes(n as usize, t as usize))
-        .max()
-        .unwrap_or(1);
+        .filter(|m| m.topic.starts_with("/palpa/mesh/"))
+    {
+        mesh_payload(m, &mut bytes)?;
+        largest = largest.max(bytes.len());
+    }
     let mesh = mesh_service(&node, &args.prefix)
         .and_then(|f| {
             Ok(f.publisher_builder()
@@ -161,15 +169,28 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
         })
         .map_err(|e| anyhow!("{e}"))?;
     let started = Instant::now();
-    let mut bytes = Vec::with_capacity(largest);
     let mut published = 0u64;
+    let mut previous_log_time = 0u64;
     for m in &recording.messages {
-        let at = Duration::from_secs_f64(m.log_time as f64 * 1e-9 / args.speed);
+        // Simulated time passes evenly in a session; a jump of more than a minute is a damaged log
+        // time, which would otherwise be waited for.
+        if m.log_time.saturating_sub(previous_log_time) > MAX_LOG_TIME_JUMP_NS {
+            bail!(
+                "{} message at log time {} ns follows {} ns: a damaged log time",
+                m.topic,
+                m.log_time,
+                previous_log_time
+            );
+        }
+        previous_log_time = previous_log_time.max(m.log_time);
+        let at = Duration::try_from_secs_f64(m.log_time as f64 * 1e-9 / args.speed)
+            .map_err(|e| anyhow!("log time {} ns at speed {}: {e}", m.log_time, args.speed))?;
         if let Some(wait) = at.checked_sub(started.elapsed()) {
             std::thread::sleep(wait);
         }
         if let Some(publisher) = feedback.get(&m.topic) {
-            let f = proto::Feedback::decode(&m.data[..])?;
+            let f = proto::Feedback::decode(&m.data[..])
+                .map_err(|e| anyhow!("{} message at log time {} ns: {e}", m.topic, m.log_time))?;
             let v = |v: Option<proto::Vec3>| v.map_or([0.0; 3], |v| [v.x, v.y, v.z]);
             publisher
                 .send_copy(ToolFeedbackV1 {
@@ -184,48 +205,7 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
                 .map_err(|e| anyhow!("{e}"))?;
             published += 1;
         } else if m.topic.starts_with("/palpa/mesh/") {
-            bytes.clear();
-            let header = if m.topic.ends_with("keyframe") {
-                let k = proto::MeshKeyframe::decode(&m.data[..])?;
-                k.positions
-                    .iter()
-                    .for_each(|x| bytes.extend_from_slice(&x.to_le_bytes()));
-                k.triangles
-                    .iter()
-                    .for_each(|x| bytes.extend_from_slice(&x.to_le_bytes()));
-                MeshHeaderV1 {
-                    kind: MESH_KEYFRAME,
-                    body: k.body,
-                    tick: k.tick,
-                    base_tick: k.tick,
-                    vertex_count: (k.positions.len() / 3) as u32,
-                    triangle_count: (k.triangles.len() / 3) as u32,
-                    changed_count: 0,
-                    payload_bytes: 0,
-                }
-            } else {
-                let d = proto::MeshDelta::decode(&m.data[..])?;
-                for (e, &v) in d.vertices.iter().enumerate() {
-                    bytes.extend_from_slice(&v.to_le_bytes());
-                    for k in 0..3 {
-                        bytes.extend_from_slice(&d.positions[3 * e + k].to_le_bytes());
-                    }
-                }
-                MeshHeaderV1 {
-                    kind: MESH_DELTA,
-                    body: d.body,
-                    tick: d.tick,
-                    base_tick: d.base_tick,
-                    vertex_count: d.vertex_count,
-                    triangle_count: 0,
-                    changed_count: d.vertices.len() as u32,
-                    payload_bytes: 0,
-                }
-            };
-            let header = MeshHeaderV1 {
-                payload_bytes: bytes.len() as u32,
-                ..header
-            };
+            let header = mesh_payload(m, &mut bytes)?;
             let mut sample = mesh
                 .loan_slice_uninit(bytes.len())
                 .map_err(|e| anyhow!("{e}"))?;
