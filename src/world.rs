@@ -161,6 +161,12 @@ fn solver_for(body: &Body, world_integrator: Integrator, dt: f64) -> BodySolver 
 }
 
 impl BodySolver {
+    /// The solver integrates the rigid component itself (multi-rate sub-stepping it with the nodes);
+    /// otherwise the commit stage does, with the force and torque the solver leaves.
+    fn integrates_rigid(&self) -> bool {
+        matches!(self, BodySolver::Multirate(m) if m.rigid_substepped)
+    }
+
     /// Follows a change of the body's topology (allocation-free within the reserved room).
     fn topology_changed(&mut self, body: &Body, dt: f64) {
         match self {
@@ -284,6 +290,9 @@ impl StageClock for StepProfile {
         self.current = Some((stage, now));
     }
 }
+
+/// Rounds of contact and implicit re-solve per step (each pins the nodes the contact stage resolved).
+const CONTACT_ROUNDS: usize = 3;
 
 /// Ticks between energy checks of the divergence guard (the other checks run every tick).
 const ENERGY_CHECK_EVERY: u64 = 16;
@@ -413,7 +422,17 @@ impl World {
         self.guards = self
             .bodies
             .iter()
-            .map(|b| Guard::new(b, &gravity))
+            .zip(&self.solvers)
+            .map(|(b, solver)| {
+                let mut guard = Guard::new(b, &gravity);
+                // A body stepped explicitly past its stability limit can gain energy within a few
+                // ticks without moving fast: its energy is watched every tick.
+                if matches!(solver, BodySolver::Symplectic) {
+                    let margin = symplectic_margin(b, dt);
+                    guard.energy_every_tick = margin.margin < 0.0 || margin.rigid_margin < 0.0;
+                }
+                guard
+            })
             .collect();
     }
 
@@ -479,7 +498,13 @@ impl World {
                     integrate_free_nodes_symplectic(&mut body.surface, dt)
                 }
                 BodySolver::Symplectic => integrate_nodes_symplectic(&mut body.surface, dt),
-                BodySolver::Multirate(m) => m.integrate(body, dt, &gravity),
+                BodySolver::Multirate(m) => m.integrate(
+                    body,
+                    dt,
+                    &gravity,
+                    &self.obstacles,
+                    &mut self.obstacle_reactions,
+                ),
                 BodySolver::Implicit(i) => i.integrate(body, dt),
             }
             if systems.tool_contact {
@@ -520,6 +545,21 @@ impl World {
                     &mut self.obstacle_reactions,
                     dt,
                 );
+                // The implicit body answers its contacts within the step: the nodes the contact
+                // stopped are pinned and the rest solved again, a few rounds at most.
+                if let BodySolver::Implicit(i) = solver {
+                    for _ in 0..CONTACT_ROUNDS {
+                        if !i.pin_contacts(body, dt) {
+                            break;
+                        }
+                        counters.obstacle_contacts += resolve_nodes_against_obstacles(
+                            &mut body.surface,
+                            &self.obstacles,
+                            &mut self.obstacle_reactions,
+                            dt,
+                        );
+                    }
+                }
             }
             if systems.tool_contact {
                 counters.tool_push_outs += push_out_of_tools(&mut body.surface, &self.tools, dt);
@@ -530,9 +570,11 @@ impl World {
             counters.bodies = resolve_body_collisions(&mut self.bodies, scratch, dt);
         }
         clock.enter(Stage::Commit);
-        for body in &mut self.bodies {
+        for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {
             commit_positions(&mut body.surface);
-            body.rigid.integrate(dt);
+            if !solver.integrates_rigid() {
+                body.rigid.integrate(dt);
+            }
         }
         // Coarsening, before the guard looks at the bodies.
         clock.enter(Stage::Subdivision);
@@ -575,7 +617,8 @@ impl World {
             let refined_now = refinement
                 .as_ref()
                 .is_some_and(|r| r.changed_at == self.tick + 1);
-            let energy = (check_energy || refined_now).then(|| body_energy(body, &gravity));
+            let energy = (check_energy || refined_now || guard.energy_every_tick)
+                .then(|| body_energy(body, &gravity));
             if refined_now && let Some(e) = energy {
                 // An insertion and its capture by the tool add energy from outside the model, like
                 // the tool's work: the budget takes it.
@@ -653,6 +696,15 @@ impl World {
         match self.solvers.get(body) {
             Some(BodySolver::Multirate(m)) => (m.substeps, m.fast.len()),
             _ => (1, 0),
+        }
+    }
+
+    /// Substeps of a body's rigid component when the multi-rate integrator sub-steps it with its
+    /// nodes (its coupling passes the explicit limit); `None` otherwise.
+    pub fn rigid_substeps_of(&self, body: usize) -> Option<u32> {
+        match self.solvers.get(body) {
+            Some(BodySolver::Multirate(m)) if m.rigid_substepped => Some(m.substeps),
+            _ => None,
         }
     }
 

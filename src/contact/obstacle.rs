@@ -68,9 +68,26 @@ fn resolve_node(
     obstacle: &Obstacle,
     dt: f64,
 ) -> Vec3 {
-    let normal = plane.normal_in_world;
-    let start = surface.position_in_world[i];
     let incoming = surface.velocity_in_world[i];
+    let (velocity, end) =
+        resolve_point(&surface.position_in_world[i], incoming, plane, obstacle, dt);
+    surface.velocity_in_world[i] = velocity;
+    surface.next_position_in_world[i] = end;
+    (velocity - incoming) * (surface.mass[i] / dt)
+}
+
+/// A point moving from `start` with `velocity` over `dt` ends below `plane`: inelastic normal
+/// response, Coulomb friction, end recomputed from the corrected velocity and projected onto the
+/// surface. Returns the corrected velocity and end position (the multi-rate integrator calls it in
+/// its substeps).
+pub fn resolve_point(
+    start: &Vec3,
+    incoming: Vec3,
+    plane: &ContactPlane,
+    obstacle: &Obstacle,
+    dt: f64,
+) -> (Vec3, Vec3) {
+    let normal = plane.normal_in_world;
     let mut velocity = incoming;
     let normal_speed = velocity.dot(&normal);
     if normal_speed < 0.0 {
@@ -83,15 +100,30 @@ fn resolve_node(
             obstacle.static_friction,
             obstacle.friction,
         );
-        surface.velocity_in_world[i] = velocity;
     }
     let mut end = start + velocity * dt;
     let depth = plane.signed_distance(&end);
     if depth < 0.0 {
         end -= normal * depth;
     }
-    surface.next_position_in_world[i] = end;
-    (velocity - incoming) * (surface.mass[i] / dt)
+    (velocity, end)
+}
+
+/// The contact plane of a point moving from `start` to `end` against `obstacle`, if it ends inside.
+pub fn point_contact_plane(obstacle: &Obstacle, start: &Vec3, end: &Vec3) -> Option<ContactPlane> {
+    match &obstacle.shape {
+        ObstacleShape::Plane {
+            point_in_world,
+            normal_in_world,
+        } => {
+            let plane = ContactPlane {
+                normal_in_world: *normal_in_world,
+                point_in_world: *point_in_world,
+            };
+            (plane.signed_distance(end) < 0.0).then_some(plane)
+        }
+        shape => shape.contact_plane(start, end),
+    }
 }
 
 /// Coulomb friction on a velocity whose normal part was just cancelled by a normal velocity change

@@ -2,8 +2,12 @@
 //! can, is torn further from its rigid component than any deformation explains, or holds more energy
 //! than it started with plus the work the tools did on it, is restored to its rigid component's shape
 //! — every node snapped to its homologue, its velocity to the rigid motion (the rigid component itself
-//! restored to its last good state if it went bad too). The event is counted with its cause and the
-//! step goes on: a NaN never leaves the step.
+//! The rigid component is checked too (finite, no faster than tissue can move, its turning included)
+//! and every restore puts it back to its last good state with the nodes on it, so a rigid component
+//! that runs away cannot drag the restored shape along (issue 12). After a restore the energy is
+//! measured: if the restored motion still holds more than the budget, the body is stopped (rigid
+//! component and nodes at rest), so a restore never adds energy. The event is counted with its cause
+//! and the step goes on: a NaN never leaves the step.
 
 use crate::Vec3;
 use crate::body::{Body, RigidComponent};
@@ -42,8 +46,12 @@ pub struct Guard {
     pub last_cause: Option<GuardCause>,
     /// The guard acted during the last step.
     pub acted: bool,
+    /// Check the energy every tick (set for a body stepped explicitly past its stability limit);
+    /// otherwise the caller checks it every few ticks.
+    pub energy_every_tick: bool,
     size: f64,
     budget: f64,
+    gravity: Vec3,
     last_good_rigid: RigidComponent,
 }
 
@@ -80,8 +88,10 @@ impl Guard {
             events: 0,
             last_cause: None,
             acted: false,
+            energy_every_tick: false,
             size: (hi - lo).norm().max(MIN_SIZE),
             budget: body_energy(body, gravity),
+            gravity: *gravity,
             last_good_rigid: body.rigid.clone(),
         }
     }
@@ -141,7 +151,13 @@ impl Guard {
         if !sum.is_finite() || !body.rigid.is_finite() {
             return Some(GuardCause::NonFinite);
         }
-        if speed2 > MAX_SPEED * MAX_SPEED {
+        // The rigid component: its centre, and the rim of its turning (|ω| times the body's size).
+        let r = &body.rigid;
+        let turning = r.angular_velocity_in_world().norm() * self.size;
+        if speed2 > MAX_SPEED * MAX_SPEED
+            || r.velocity_in_world.norm_squared() > MAX_SPEED * MAX_SPEED
+            || turning > MAX_SPEED
+        {
             return Some(GuardCause::Speed);
         }
         let max_stretch = MAX_STRETCH * self.size;
@@ -156,10 +172,25 @@ impl Guard {
         None
     }
 
+    /// The last good rigid component, the nodes on it moving with it; stopped if that motion holds
+    /// more energy than the budget allows.
     fn restore(&mut self, body: &mut Body) {
-        if !body.rigid.is_finite() {
-            body.rigid = self.last_good_rigid.clone();
+        // Forces are a step's scratch: keep the current ones, restore the state.
+        let (force, torque) = (body.rigid.force_in_world, body.rigid.torque_in_world);
+        body.rigid.clone_from(&self.last_good_rigid);
+        body.rigid.force_in_world = force;
+        body.rigid.torque_in_world = torque;
+        self.snap_nodes(body);
+        let allowed = self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J;
+        let energy = body_energy(body, &self.gravity);
+        if !energy.is_finite() || energy > allowed {
+            body.rigid.velocity_in_world = Vec3::zeros();
+            body.rigid.angular_momentum_in_world = Vec3::zeros();
+            self.snap_nodes(body);
         }
+    }
+
+    fn snap_nodes(&self, body: &mut Body) {
         let r = &body.rigid;
         let world_from_body = r.world_from_body.to_rotation_matrix();
         let omega = r.angular_velocity_in_world();

@@ -19,8 +19,14 @@ pub struct StabilityMargin {
     pub limit: f64,
     /// `limit − omega_dt`: negative means the scheme diverges on that node.
     pub margin: f64,
-    /// ω Δt of the rigid component's translation on all its links, √(Σ k_i / M) Δt.
+    /// ω Δt of the rigid component on all its links, the worse of translation and rotation (see
+    /// [`rigid_bounds`]).
     pub rigid_omega_dt: f64,
+    /// The largest stable ω Δt of the rigid component given its damping.
+    pub rigid_limit: f64,
+    /// `rigid_limit − rigid_omega_dt`: negative means the explicit scheme diverges on the rigid
+    /// component's coupling (a fixed rigid component is never integrated: +∞).
+    pub rigid_margin: f64,
 }
 
 /// ω Δt limit of semi-implicit Euler for a damping rate `b = Δt c / m`.
@@ -60,6 +66,63 @@ pub fn node_bounds_into(body: &Body, stiffness: &mut Vec<f64>, damping: &mut Vec
     }
 }
 
+/// The rigid component's modes on its links, as `(stiffness, damping, inverse mass)` for its
+/// translation and for its rotation about its least inertial axis: the two-body modes of the rigid
+/// component against the whole surface (the surface moving as one), with the reduced mass
+/// μ = M m_s / (M + m_s) and the reduced inertia likewise:
+///
+/// * translation: (Σ kᵢ, Σ cᵢ + ν μ, 1/μ), so ω² = Σ kᵢ (1/M + 1/m_s);
+/// * rotation: (Σ kᵢ |rᵢ|², Σ cᵢ |rᵢ|² + ν μ_I, 1/μ_I), with rᵢ the homologues' arms and
+///   1/μ_I = 1/I_min + 1/I_s,min (I_s the surface nodes' inertia about the rigid component's centre).
+///
+/// With M = m_s this is the Gershgorin bound 2 Σ k / M of the rigid component's row.
+pub fn rigid_bounds(body: &Body) -> [(f64, f64, f64); 2] {
+    let s = &body.surface;
+    let r = &body.rigid;
+    let (mut k, mut c, mut k_turn, mut c_turn) = (0.0, 0.0, 0.0, 0.0);
+    let mut surface_mass = 0.0;
+    let mut surface_inertia = nalgebra::Matrix3::zeros();
+    for i in 0..s.mass.len() {
+        let arm = s.homologue_in_body[i];
+        let arm2 = arm.norm_squared();
+        k += s.link_stiffness[i];
+        c += s.link_damping[i];
+        k_turn += s.link_stiffness[i] * arm2;
+        c_turn += s.link_damping[i] * arm2;
+        surface_mass += s.mass[i];
+        surface_inertia +=
+            (nalgebra::Matrix3::identity() * arm2 - arm * arm.transpose()) * s.mass[i];
+    }
+    let smallest =
+        |m: nalgebra::Matrix3<f64>| m.symmetric_eigenvalues().min().max(f64::MIN_POSITIVE);
+    let inverse_reduced = 1.0 / r.mass + 1.0 / surface_mass.max(f64::MIN_POSITIVE);
+    let inverse_reduced_turn = 1.0 / smallest(r.inertia_in_body) + 1.0 / smallest(surface_inertia);
+    [
+        (k, c + r.air_viscosity / inverse_reduced, inverse_reduced),
+        (
+            k_turn,
+            c_turn + r.air_viscosity / inverse_reduced_turn,
+            inverse_reduced_turn,
+        ),
+    ]
+}
+
+/// The rigid component's ω Δt on its links (the larger of translation and rotation, from
+/// [`rigid_bounds`]) and its limit under semi-implicit Euler, `(omega_dt, limit)`.
+pub fn rigid_omega_dt(body: &Body, dt: f64) -> (f64, f64) {
+    rigid_bounds(body)
+        .iter()
+        .map(|&(k, c, inverse_mass)| {
+            (
+                (k * inverse_mass).sqrt() * dt,
+                symplectic_limit(dt * c * inverse_mass),
+            )
+        })
+        .fold((0.0, f64::INFINITY), |(w, l), (w2, l2)| {
+            if w2 - l2 > w - l { (w2, l2) } else { (w, l) }
+        })
+}
+
 /// Whether a node with these Gershgorin sums and inverse mass is stable under semi-implicit Euler
 /// at step `h`, with a safety factor on the limit.
 pub fn stable_at(stiffness: f64, damping: f64, inverse_mass: f64, h: f64, safety: f64) -> bool {
@@ -78,6 +141,8 @@ pub fn symplectic_margin(body: &Body, dt: f64) -> StabilityMargin {
         limit: 2.0,
         margin: f64::INFINITY,
         rigid_omega_dt: 0.0,
+        rigid_limit: 2.0,
+        rigid_margin: f64::INFINITY,
     };
     for i in 0..n {
         let omega_dt = (stiffness[i] * s.inverse_mass[i]).sqrt() * dt;
@@ -88,11 +153,15 @@ pub fn symplectic_margin(body: &Body, dt: f64) -> StabilityMargin {
                 omega_dt,
                 limit,
                 margin: limit - omega_dt,
-                rigid_omega_dt: 0.0,
+                ..worst
             };
         }
     }
-    let total_link: f64 = s.link_stiffness.iter().sum();
-    worst.rigid_omega_dt = (total_link / body.rigid.mass).sqrt() * dt;
+    let (rigid_omega_dt, rigid_limit) = rigid_omega_dt(body, dt);
+    worst.rigid_omega_dt = rigid_omega_dt;
+    worst.rigid_limit = rigid_limit;
+    if !body.rigid.fixed {
+        worst.rigid_margin = rigid_limit - rigid_omega_dt;
+    }
     worst
 }
