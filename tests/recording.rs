@@ -165,6 +165,15 @@ fn summary_of(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// Ticks readable in a file being written (0 while it cannot be read yet).
+fn ticks_on_disk(path: &Path) -> u64 {
+    let out = replay(&[path.to_str().unwrap(), "--summary", "--json"]);
+    serde_json::from_slice::<serde_json::Value>(&out.stdout)
+        .ok()
+        .and_then(|s| s["ticks"].as_u64())
+        .unwrap_or(0)
+}
+
 /// Kills its process when dropped.
 struct Child(std::process::Child);
 
@@ -292,7 +301,7 @@ fn a_daemon_killed_while_recording_leaves_a_readable_file() {
     // first two seconds; the lockstep daemon waits meanwhile. Then SIGKILL.
     drive(&prefix, 2500);
     let deadline = Instant::now() + Duration::from_secs(30);
-    while summary_of(&path)["ticks"].as_u64().unwrap_or(0) < 2000 {
+    while ticks_on_disk(&path) < 2000 {
         assert!(
             Instant::now() < deadline,
             "chunks are not closed every 1000 ticks"
@@ -381,6 +390,39 @@ fn serve_stopped_by_an_error_leaves_a_complete_recording() {
     let summary = summary_of(&path);
     assert_eq!(summary["complete"], true, "{summary}");
     assert_eq!(summary["messages"]["/palpa/scene"], 1, "{summary}");
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn palpa_run_stopped_by_sigterm_finishes_its_recording() {
+    let path = temp("run-sigterm.mcap");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/probe_press.toml");
+    let run = Child(
+        Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args(["run", scene, "--duration", "100000", "--record"])
+            .arg(&path)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    // Once a chunk is on disk (the run is under way), SIGTERM.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while ticks_on_disk(&path) < 1000 {
+        assert!(Instant::now() < deadline, "the run records nothing");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc_kill(run.0.id() as i32, 15);
+    }
+    let (status, text) = ended(run);
+    assert_eq!(status.code(), Some(1), "{text}");
+    assert!(text.contains("stopped by a signal after "), "{text}");
+    let summary = summary_of(&path);
+    assert_eq!(summary["complete"], true, "{summary}");
+    let ticks = summary["ticks"].as_u64().unwrap();
+    assert!(ticks >= 1000 && ticks < 100_000_000, "{summary}");
     std::fs::remove_file(&path).ok();
 }
 

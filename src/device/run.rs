@@ -3,7 +3,8 @@
 //! `<prefix>/tool/<tool>/feedback`, and time every round trip.
 //!
 //! Real-time mode sends on its own 1 ms clock; lockstep mode sends the next pose only when the
-//! previous one was answered (1 s at most, then it counts as lost).
+//! previous one was answered (10 s at most — a watchdog against a daemon that is gone — then it
+//! counts as lost).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -360,7 +361,7 @@ pub fn run_device(
         })?;
         sent += 1;
         if options.lockstep {
-            let give_up = Instant::now() + Duration::from_secs(1);
+            let give_up = Instant::now() + Duration::from_secs(10);
             while tally.answered_up_to < seq
                 && Instant::now() < give_up
                 && !stop.load(Ordering::Relaxed)
