@@ -15,6 +15,7 @@
 //! - [`contact`]: node–obstacle and node–tool contact with Coulomb friction; force feedback.
 //! - [`world`]: the [`World`](world::World) and its step as a list of stages.
 //! - [`topology`]: adaptive subdivision with the paper's mass rule, and coarsening.
+//! - [`math`]: the transcendental functions of the physics from `libm` (the same bits on every machine).
 //! - [`trace`]: the CSV trace of a run.
 //! - [`daemon`]: input hygiene and loop statistics of the 1 kHz daemon.
 //! - [`device`]: the simulated haptic device (model and loop).
@@ -43,6 +44,7 @@ pub mod device;
 pub mod display;
 pub mod dynamics;
 pub mod ipc;
+pub mod math;
 #[cfg(feature = "record")]
 pub mod record;
 pub mod scene;

@@ -8,6 +8,7 @@
 
 use super::Placement;
 use crate::Vec3;
+use crate::math::quaternion_from_scaled_axis;
 use nalgebra::{Matrix3, UnitQuaternion};
 
 /// Rigid component state and constants.
@@ -124,9 +125,9 @@ impl RigidComponent {
         // instead of O(Δt) on an asymmetric body.
         let start = self.world_from_body;
         let omega_start = self.angular_velocity_in_world();
-        self.world_from_body = UnitQuaternion::from_scaled_axis(omega_start * (0.5 * dt)) * start;
+        self.world_from_body = quaternion_from_scaled_axis(&(omega_start * (0.5 * dt))) * start;
         let omega = self.angular_velocity_in_world();
-        let rotation = UnitQuaternion::from_scaled_axis(omega * dt);
+        let rotation = quaternion_from_scaled_axis(&(omega * dt));
         self.world_from_body = UnitQuaternion::new_normalize((rotation * start).into_inner());
     }
 }

@@ -155,9 +155,7 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
 fn pose_between(a: &ToolPose, b: &ToolPose, s: f64) -> ToolPose {
     ToolPose {
         position_in_world: a.position_in_world.lerp(&b.position_in_world, s),
-        world_from_tool: a
-            .world_from_tool
-            .try_slerp(&b.world_from_tool, s, 1e-12)
+        world_from_tool: crate::math::try_slerp(&a.world_from_tool, &b.world_from_tool, s, 1e-12)
             .unwrap_or(b.world_from_tool),
     }
 }

@@ -70,7 +70,8 @@ pub fn body_energy(body: &Body, gravity: &Vec3) -> f64 {
     for k in 0..e.len() {
         let length =
             (s.position_in_world[e.b[k] as usize] - s.position_in_world[e.a[k] as usize]).norm();
-        energy += 0.5 * e.stiffness[k] * (length - e.rest_length[k]).powi(2);
+        let stretch = length - e.rest_length[k];
+        energy += 0.5 * e.stiffness[k] * stretch * stretch;
     }
     energy
 }

@@ -132,7 +132,8 @@ impl ToolShape {
             } => {
                 let half = 0.5 * jaw.max(0.0);
                 for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
-                    let direction = Vec3::new(sign * half.sin(), 0.0, half.cos());
+                    let direction =
+                        Vec3::new(sign * crate::math::sin(half), 0.0, crate::math::cos(half));
                     parts[k] = CapsulePart {
                         a: Vec3::zeros(),
                         b: direction * jaw_length,
@@ -233,11 +234,13 @@ impl ToolInput {
         let s = (t - a.t) / (b.t - a.t);
         let pose = ToolPose {
             position_in_world: a.pose.position_in_world.lerp(&b.pose.position_in_world, s),
-            world_from_tool: a
-                .pose
-                .world_from_tool
-                .try_slerp(&b.pose.world_from_tool, s, 1e-12)
-                .unwrap_or(a.pose.world_from_tool),
+            world_from_tool: crate::math::try_slerp(
+                &a.pose.world_from_tool,
+                &b.pose.world_from_tool,
+                s,
+                1e-12,
+            )
+            .unwrap_or(a.pose.world_from_tool),
         };
         Some((pose, a.jaw + (b.jaw - a.jaw) * s))
     }

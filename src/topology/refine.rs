@@ -509,7 +509,7 @@ pub fn min_angle_deg(tri: &[Vec3; 3]) -> f64 {
             return 0.0;
         }
         let cos = (u.dot(&v) / denominator).clamp(-1.0, 1.0);
-        smallest = smallest.min(cos.acos().to_degrees());
+        smallest = smallest.min(crate::math::acos(cos).to_degrees());
     }
     smallest
 }
