@@ -708,6 +708,12 @@ impl World {
         }
     }
 
+    /// Whether the multi-rate integrator steps a body's rigid component implicitly (it alone is past
+    /// the explicit limit).
+    pub fn rigid_stepped_implicitly(&self, body: usize) -> bool {
+        matches!(self.solvers.get(body), Some(BodySolver::Multirate(m)) if m.rigid_implicit)
+    }
+
     /// Iterations and relative residual of the last implicit solve of a body.
     pub fn implicit_solve_of(&self, body: usize) -> Option<(u32, f64)> {
         match self.solvers.get(body) {

@@ -14,7 +14,10 @@
 //! or a rigid component so light, that its ω·Δt on the links passes the explicit limit — see
 //! [`rigid_bounds`]). Then every node is fast: nodes and rigid component advance together in the
 //! substeps, each substep computing the link forces and their reactions from the current states, and
-//! the rigid component leaves the step already integrated ([`Multirate::rigid_substepped`]).
+//! the rigid component leaves the step already integrated ([`Multirate::rigid_substepped`]). When no
+//! node needs sub-stepping and the rigid component alone is past its limit (a very light or heavily
+//! damped rigid component), it takes one linearly implicit step of its own against the nodes'
+//! end-of-step states instead ([`Multirate::rigid_implicit`]).
 
 use crate::Vec3;
 use crate::body::Body;
@@ -38,8 +41,12 @@ pub struct Multirate {
     pub fast: Vec<u32>,
     /// Substeps per step of the fast nodes (2^level of the fastest).
     pub substeps: u32,
-    /// The rigid component is sub-stepped with the nodes (its coupling passes the explicit limit).
+    /// The rigid component is sub-stepped with the nodes (its coupling passes the explicit limit and
+    /// some nodes are sub-stepped).
     pub rigid_substepped: bool,
+    /// The rigid component is stepped by a linearly implicit update against the nodes' end-of-step
+    /// states (its coupling passes the explicit limit, every node is stable at the step).
+    pub rigid_implicit: bool,
     local: Vec<u32>,
     start: Vec<u32>,
     neighbour: Vec<u32>,
@@ -67,6 +74,7 @@ impl Multirate {
             fast: Vec::with_capacity(n),
             substeps: 1,
             rigid_substepped: false,
+            rigid_implicit: false,
             local: Vec::with_capacity(n),
             start: Vec::with_capacity(n + 1),
             neighbour: Vec::with_capacity(2 * m),
@@ -134,7 +142,10 @@ impl Multirate {
                 rigid_level += 1;
             }
         }
-        self.rigid_substepped = rigid_level > 0;
+        // With no node sub-stepped the rigid component alone is past its limit: one implicit update
+        // of its six unknowns replaces the substeps its coupling (often its link damping) would need.
+        self.rigid_implicit = rigid_level > 0 && level_max == 0;
+        self.rigid_substepped = rigid_level > 0 && level_max > 0;
         if self.rigid_substepped {
             self.fast.clear();
             self.fast.extend(0..n as u32);
@@ -216,6 +227,11 @@ impl Multirate {
             let velocity = s.velocity_in_world[i] + s.force_in_world[i] * (dt * s.inverse_mass[i]);
             s.velocity_in_world[i] = velocity;
             s.next_position_in_world[i] = s.position_in_world[i] + velocity * dt;
+        }
+        if self.rigid_implicit {
+            // Every node is slow here (see `rebuild`): nothing is left to sub-step.
+            step_rigid_implicitly(body, dt, gravity);
+            return;
         }
         if self.fast.is_empty() {
             return;
@@ -377,4 +393,60 @@ impl Multirate {
             s.next_position_in_world[i] = self.x[i];
         }
     }
+}
+
+/// Backward Euler on the rigid component's velocity and angular velocity alone, the nodes taken at
+/// their end-of-step positions and velocities (already integrated), the links linearised in the rigid
+/// motion: with e = X + a − x' and w = h k + c per link,
+///
+/// (M/h + ν M + Σ w) V' − (Σ w [a]×) ω' = M V/h + M g − Σ (k e − c v')
+/// (Σ w [a]×) V' + (I_w/h + ν I_w + Σ w (|a|² I − a aᵀ)) ω' = I_w ω/h − Σ a × (k e − c v')
+///
+/// (a symmetric positive definite 6×6 system; the gyroscopic term is left out, as in the explicit
+/// update). Leaves in the rigid component's force and torque what
+/// its own semi-implicit update needs to reach V' and I_w ω'.
+fn step_rigid_implicitly(body: &mut Body, h: f64, gravity: &Vec3) {
+    use nalgebra::{Matrix3, Matrix6, Vector6};
+    let Body {
+        surface: s, rigid, ..
+    } = body;
+    if rigid.fixed {
+        return;
+    }
+    let skew = |a: &Vec3| Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0);
+    let world_from_body = rigid.world_from_body.to_rotation_matrix();
+    let inertia = rigid.inertia_in_world();
+    let velocity = rigid.velocity_in_world;
+    let omega = rigid.angular_velocity_in_world();
+    let air = 1.0 + h * rigid.air_viscosity;
+    let mut translation = Matrix3::identity() * (rigid.mass * air / h);
+    let mut rotation = inertia * (air / h);
+    let mut coupling = Matrix3::zeros();
+    // Air is in the matrix (implicit); gravity and the links' pull at the nodes' end states here.
+    let mut force = rigid.mass * velocity / h + gravity * rigid.mass;
+    let mut torque = inertia * omega / h;
+    for i in 0..s.mass.len() {
+        let arm = world_from_body * s.homologue_in_body[i];
+        let w = h * s.link_stiffness[i] + s.link_damping[i];
+        let stretch = rigid.position_in_world + arm - s.next_position_in_world[i];
+        let pull = stretch * s.link_stiffness[i] - s.velocity_in_world[i] * s.link_damping[i];
+        translation += Matrix3::identity() * w;
+        rotation += (Matrix3::identity() * arm.norm_squared() - arm * arm.transpose()) * w;
+        coupling += skew(&arm) * w;
+        force -= pull;
+        torque -= arm.cross(&pull);
+    }
+    let mut a = Matrix6::zeros();
+    a.fixed_view_mut::<3, 3>(0, 0).copy_from(&translation);
+    a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-coupling));
+    a.fixed_view_mut::<3, 3>(3, 0).copy_from(&coupling);
+    a.fixed_view_mut::<3, 3>(3, 3).copy_from(&rotation);
+    let b = Vector6::new(force.x, force.y, force.z, torque.x, torque.y, torque.z);
+    let Some(solution) = a.lu().solve(&b) else {
+        return;
+    };
+    let new_velocity = Vec3::new(solution[0], solution[1], solution[2]);
+    let new_omega = Vec3::new(solution[3], solution[4], solution[5]);
+    rigid.force_in_world = (new_velocity - velocity) * (rigid.mass / h);
+    rigid.torque_in_world = inertia * (new_omega - omega) / h;
 }
