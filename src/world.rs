@@ -498,13 +498,15 @@ impl World {
                     integrate_free_nodes_symplectic(&mut body.surface, dt)
                 }
                 BodySolver::Symplectic => integrate_nodes_symplectic(&mut body.surface, dt),
-                BodySolver::Multirate(m) => m.integrate(
-                    body,
-                    dt,
-                    &gravity,
-                    &self.obstacles,
-                    &mut self.obstacle_reactions,
-                ),
+                BodySolver::Multirate(m) => {
+                    counters.obstacle_contacts += m.integrate(
+                        body,
+                        dt,
+                        &gravity,
+                        &self.obstacles,
+                        &mut self.obstacle_reactions,
+                    )
+                }
                 BodySolver::Implicit(i) => i.integrate(body, dt),
             }
             if systems.tool_contact {

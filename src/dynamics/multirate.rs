@@ -57,6 +57,8 @@ pub struct Multirate {
     homologue_end: Vec<Vec3>,
     bound_stiffness: Vec<f64>,
     bound_damping: Vec<f64>,
+    /// Nodes that touched an obstacle during the substeps of this step.
+    touched: Vec<bool>,
 }
 
 impl Multirate {
@@ -85,6 +87,7 @@ impl Multirate {
             homologue_end: Vec::with_capacity(n),
             bound_stiffness: Vec::with_capacity(n),
             bound_damping: Vec::with_capacity(n),
+            touched: Vec::with_capacity(n),
         };
         multirate.rebuild(body, dt);
         multirate
@@ -188,6 +191,8 @@ impl Multirate {
             self.start[i] = self.start[i + 1];
         }
         self.start[n] = 2 * e.len() as u32;
+        self.touched.clear();
+        self.touched.resize(n, false);
         let m = self.fast.len();
         for buffer in [
             &mut self.x,
@@ -213,10 +218,9 @@ impl Multirate {
         gravity: &Vec3,
         obstacles: &[Obstacle],
         reactions: &mut [Vec3],
-    ) {
+    ) -> usize {
         if self.rigid_substepped {
-            self.integrate_with_rigid(body, dt, gravity, obstacles, reactions);
-            return;
+            return self.integrate_with_rigid(body, dt, gravity, obstacles, reactions);
         }
         let s = &mut body.surface;
         let n = s.mass.len();
@@ -231,10 +235,10 @@ impl Multirate {
         if self.rigid_implicit {
             // Every node is slow here (see `rebuild`): nothing is left to sub-step.
             step_rigid_implicitly(body, dt, gravity);
-            return;
+            return 0;
         }
         if self.fast.is_empty() {
-            return;
+            return 0;
         }
         // Where the rigid component will be at the end of the step (its forces are already known), so
         // the fast nodes' homologues move with it through the substeps instead of waiting a step.
@@ -302,6 +306,7 @@ impl Multirate {
             s.velocity_in_world[i] = self.v[k];
             s.next_position_in_world[i] = self.x[k];
         }
+        0
     }
 
     /// Every node and the rigid component together in substeps (the rigid component's coupling
@@ -314,7 +319,7 @@ impl Multirate {
         gravity: &Vec3,
         obstacles: &[Obstacle],
         reactions: &mut [Vec3],
-    ) {
+    ) -> usize {
         let Body {
             surface: s,
             edges: e,
@@ -378,6 +383,7 @@ impl Multirate {
                         (self.v[i], self.x[i]) =
                             resolve_point(&start, incoming, &plane, obstacle, h);
                         *reaction += (self.v[i] - incoming) * (s.mass[i] / dt);
+                        self.touched[i] = true;
                     }
                 }
             }
@@ -392,6 +398,12 @@ impl Multirate {
             s.velocity_in_world[i] = self.v[i];
             s.next_position_in_world[i] = self.x[i];
         }
+        let mut touched = 0;
+        for flag in &mut self.touched {
+            touched += usize::from(*flag);
+            *flag = false;
+        }
+        touched
     }
 }
 
