@@ -56,9 +56,11 @@ fn no_panic<T>(what: &str, f: impl FnOnce() -> T) -> T {
 }
 
 /// A binary's run on damaged input ended normally: an exit code (no signal, no abort), not a
-/// panic's 101, and an error exit says why on stderr.
-fn assert_clean_exit(what: &str, out: &std::process::Output) {
+/// panic's 101, and an error exit says why (an error on stderr, or `palpa-replay --verify`'s
+/// FAILED / DAMAGED verdict on stdout). Returns the exit code.
+fn assert_clean_exit(what: &str, out: &std::process::Output) -> i32 {
     let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
     let code = out
         .status
         .code()
@@ -67,10 +69,44 @@ fn assert_clean_exit(what: &str, out: &std::process::Output) {
     assert!(!stderr.contains("panicked"), "{what}: {stderr}");
     if code != 0 {
         assert!(
-            stderr.contains("Error"),
-            "{what}: exit {code} without a message"
+            stderr.contains("Error")
+                || stdout.contains("verify: FAILED")
+                || stdout.contains("verify: DAMAGED"),
+            "{what}: exit {code} without a message: {stdout}{stderr}"
         );
     }
+    code
+}
+
+/// `palpa-replay --verify`: the recording is complete, undamaged and replays bit for bit.
+const VERIFY_OK: i32 = 0;
+/// `palpa-replay --verify`: a difference, or the file cannot be read or replayed.
+const VERIFY_FAILED: i32 = 1;
+/// `palpa-replay --verify`: the file is damaged or cut short; what could be read replays.
+const VERIFY_DAMAGED: i32 = 3;
+
+fn palpa_replay(file: &Path, mode: &str) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .args([file.to_str().unwrap(), mode])
+        .output()
+        .unwrap()
+}
+
+/// How the reader and in-process replay took a file: what `palpa-replay --verify` must exit with.
+fn expected_verify_code(bytes: &[u8], work: &Path) -> i32 {
+    let code = match read_recording(bytes) {
+        Err(_) => VERIFY_FAILED,
+        Ok(recording) => {
+            let intact = recording.complete && recording.damage.is_none();
+            match (verify(&recording, work, |_, _| {}), intact) {
+                (Ok(_), true) => VERIFY_OK,
+                (Ok(_), false) => VERIFY_DAMAGED,
+                (Err(_), _) => VERIFY_FAILED,
+            }
+        }
+    };
+    let _ = std::fs::remove_dir_all(work);
+    code
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -172,12 +208,17 @@ fn corrupt_recording(bytes: &[u8], k: usize, rng: &mut Rng) -> (String, Vec<u8>)
 }
 
 fn record_session(path: &Path) {
+    record_session_of(path, "1");
+}
+
+/// Records `seconds` of the probe scene (chunks close every second).
+fn record_session_of(path: &Path, seconds: &str) {
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args([
             "run",
             concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/probe_press.toml"),
             "--duration",
-            "1",
+            seconds,
             "--record",
             path.to_str().unwrap(),
         ])
@@ -196,7 +237,14 @@ fn corrupted_recordings_give_clear_errors_in_process_and_from_palpa_replay() {
     record_session(&path);
     let bytes = std::fs::read(&path).unwrap();
     let whole = read_recording(&bytes).unwrap();
-    assert!(whole.complete);
+    assert!(whole.complete && whole.damage.is_none());
+    // The intact file passes.
+    let out = palpa_replay(&path, "--verify");
+    assert_eq!(
+        assert_clean_exit("palpa-replay --verify on the intact recording", &out),
+        VERIFY_OK
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("verify: OK"));
     let mut rng = Rng(0x5eed_0001);
     let (mut ok, mut damaged, mut refused, mut verified, mut differs) = (0, 0, 0, 0, 0);
     let work = temp("work");
@@ -207,6 +255,11 @@ fn corrupted_recordings_give_clear_errors_in_process_and_from_palpa_replay() {
             Ok(recording) => {
                 ok += 1;
                 damaged += recording.damage.is_some() as usize;
+                // Every variant differs from the recording: the reader must not take it as whole.
+                assert!(
+                    variant == bytes || !recording.complete || recording.damage.is_some(),
+                    "{what}: read as a complete, undamaged recording"
+                );
                 let _ = summarise(&recording);
                 let mut payload = Vec::new();
                 for m in &recording.messages {
@@ -232,12 +285,26 @@ fn corrupted_recordings_give_clear_errors_in_process_and_from_palpa_replay() {
         if k % 10 == 0 {
             let file = temp(&format!("variant-{k}.mcap"));
             std::fs::write(&file, &variant).unwrap();
-            for mode in ["--summary", "--verify"] {
-                let out = Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
-                    .args([file.to_str().unwrap(), mode])
-                    .output()
-                    .unwrap();
-                assert_clean_exit(&format!("palpa-replay {mode} on {what}"), &out);
+            let out = palpa_replay(&file, "--summary");
+            assert_clean_exit(&format!("palpa-replay --summary on {what}"), &out);
+            // --verify: never 0 for a damaged file; 3 when what could be read replays, 1 when the
+            // file cannot be read or replayed — as the reader and replay decided in-process.
+            let out = palpa_replay(&file, "--verify");
+            let code = assert_clean_exit(&format!("palpa-replay --verify on {what}"), &out);
+            let expected = expected_verify_code(&variant, &work);
+            assert_ne!(expected, VERIFY_OK, "{what}: taken as intact in-process");
+            assert_eq!(
+                code,
+                expected,
+                "palpa-replay --verify on {what}: {}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            if code == VERIFY_DAMAGED {
+                assert!(
+                    String::from_utf8_lossy(&out.stdout).contains("is damaged"),
+                    "{what}"
+                );
             }
             std::fs::remove_file(file).ok();
         }
@@ -252,6 +319,81 @@ fn corrupted_recordings_give_clear_errors_in_process_and_from_palpa_replay() {
     // A cut file is still read up to its damage: the killed-daemon case.
     let cut = read_recording(&bytes[..bytes.len() * 2 / 3]).unwrap();
     assert!(!cut.complete && cut.damage.is_some());
+    std::fs::remove_file(path).ok();
+}
+
+#[test]
+fn verify_reports_a_recording_cut_short_after_its_scene_message_as_damaged() {
+    let path = temp("cut.mcap");
+    record_session_of(&path, "3");
+    let bytes = std::fs::read(&path).unwrap();
+    let whole = read_recording(&bytes).unwrap();
+    assert!(whole.complete && whole.damage.is_none());
+    let work = temp("work-cut");
+    let all_ticks = verify(&whole, &work, |_, _| {}).unwrap().ticks;
+    let _ = std::fs::remove_dir_all(&work);
+    // Two cuts after the scene message, both in the last chunk's record: in the middle (damaged
+    // bytes at the cut: what follows is lost) and at its end (the file just stops after a whole
+    // chunk, without the index records, summary and footer that close it — a killed daemon's file).
+    // And, for comparison, a whole file with one flipped byte in its summary section (an index).
+    let records = record_offsets(&bytes);
+    let (last_chunk, _) = *records.iter().rfind(|r| r.1 == 0x06).unwrap();
+    let (footer, _) = *records.iter().rfind(|r| r.1 == 0x02).unwrap();
+    let length = u64::from_le_bytes(bytes[last_chunk + 1..last_chunk + 9].try_into().unwrap());
+    let chunk_end = last_chunk + 9 + length as usize;
+    let mut flipped = bytes.clone();
+    flipped[footer - 5] ^= 0x10;
+    for (what, variant, all_read) in [
+        (
+            "cut inside its last chunk",
+            bytes[..last_chunk + 9 + length as usize / 2].to_vec(),
+            false,
+        ),
+        (
+            "cut after its last chunk",
+            bytes[..chunk_end].to_vec(),
+            true,
+        ),
+        ("a summary byte flipped", flipped, true),
+    ] {
+        let recording = read_recording(&variant).unwrap();
+        assert!(!recording.complete, "{what}");
+        let ticks = verify(&recording, &work, |_, _| {}).unwrap().ticks;
+        let _ = std::fs::remove_dir_all(&work);
+        if all_read {
+            assert_eq!(ticks, all_ticks, "{what}");
+        } else {
+            assert!(
+                0 < ticks && ticks < all_ticks,
+                "{what}: {ticks} of {all_ticks} ticks"
+            );
+        }
+        let file = temp("cut-short.mcap");
+        std::fs::write(&file, &variant).unwrap();
+        let out = palpa_replay(&file, "--verify");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(
+            out.status.code(),
+            Some(VERIFY_DAMAGED),
+            "{what}: {stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains("damaged"), "{what}: {stdout}");
+        assert!(!stdout.contains("verify: OK"), "{what}: {stdout}");
+        // Where, and how much was verified.
+        let place = match &recording.damage {
+            Some(d) => format!("at byte {}", d.offset),
+            None => format!("at byte {} without its footer", variant.len()),
+        };
+        assert!(stdout.contains(&place), "{what}: {stdout}");
+        assert!(
+            stdout.contains(&format!(
+                "the {ticks} ticks read before the damage replay bit for bit"
+            )),
+            "{what}: {stdout}"
+        );
+        std::fs::remove_file(file).ok();
+    }
     std::fs::remove_file(path).ok();
 }
 

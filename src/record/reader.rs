@@ -9,6 +9,12 @@
 //! chunk is decompressed by the `mcap` crate's sans-io reader with a record length limit of the
 //! chunk's declared uncompressed size, which is first checked against [`MAX_COMPRESSION_RATIO`]
 //! times its compressed size; a chunk's CRC is checked before any of its records is handed on.
+//!
+//! A file is whole only when every byte is accounted for: the data section's CRC (in the data end
+//! record) covers the records outside chunks' data, the footer's summary CRC covers the summary
+//! section (indexes, statistics) and the footer, and the footer is followed by the end magic and
+//! nothing else. A file damaged only there still has all its messages; the damage is reported all
+//! the same.
 
 use mcap::records::op;
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
@@ -140,6 +146,56 @@ pub enum Problem {
     /// No scene message before the end of what could be read.
     #[error("the recording has no /palpa/scene message")]
     NoScene,
+    /// The data section's bytes do not match the CRC in the data end record.
+    #[error(
+        "data end record: data section CRC {saved:08x} recorded, {computed:08x} computed over bytes \
+         0..{end}: damaged bytes outside the chunks' data (all messages were read)"
+    )]
+    DataCrc {
+        /// CRC in the file.
+        saved: u32,
+        /// CRC of the bytes read.
+        computed: u32,
+        /// End of the data section (offset of the data end record).
+        end: u64,
+    },
+    /// A footer without a data end record before it.
+    #[error(
+        "footer without a data end record before it: the end of the data section is damaged \
+         (all messages were read)"
+    )]
+    NoDataEnd,
+    /// The footer's summary start is not where the summary section starts.
+    #[error(
+        "footer: summary section recorded to start at byte {recorded}, but it starts at byte \
+         {actual}: a damaged footer (all messages were read)"
+    )]
+    SummaryStart {
+        /// `summary_start` in the footer (0: no summary section).
+        recorded: u64,
+        /// Where the summary section starts (0: it is empty).
+        actual: u64,
+    },
+    /// The summary section and footer do not match the footer's CRC.
+    #[error(
+        "footer: summary CRC {saved:08x} recorded, {computed:08x} computed: damaged bytes in the \
+         summary section (indexes, statistics) or the footer (all messages were read)"
+    )]
+    SummaryCrc {
+        /// CRC in the file.
+        saved: u32,
+        /// CRC of the bytes read.
+        computed: u32,
+    },
+    /// The footer is not followed by exactly the end magic.
+    #[error(
+        "the footer is not followed by exactly the 8 MCAP end magic bytes ({after} bytes follow \
+         it): cut short or damaged (all messages were read)"
+    )]
+    EndMagic {
+        /// Bytes after the footer record.
+        after: u64,
+    },
 }
 
 /// One record a recording is made of, borrowed from the file or from a decompressed chunk.
@@ -173,9 +229,10 @@ pub enum Item<'a> {
 }
 
 /// Reads every record of an MCAP file in order and hands channels, messages, attachments and the
-/// footer to `visit`; stops at the footer (the summary section before it is stepped over, the end
-/// magic is not required). The first bad record, or the first problem `visit` returns, ends the
-/// reading with its offset.
+/// footer to `visit`; stops at the footer (the records of the summary section before it are read
+/// like any other). The data section's CRC is checked at the data end record; the footer is handed
+/// on only once the summary CRC has been checked and the end magic found after it. The first bad
+/// record, or the first problem `visit` returns, ends the reading with its offset.
 pub fn read_records(
     bytes: &[u8],
     mut visit: impl FnMut(Item<'_>) -> Result<(), Problem>,
@@ -187,6 +244,8 @@ pub fn read_records(
         });
     }
     let mut at = MAGIC.len();
+    // Where the summary section starts: just after the data end record, once it is read.
+    let mut summary_start = None;
     while at < bytes.len() {
         let damage = |problem| Damage {
             offset: at as u64,
@@ -194,13 +253,67 @@ pub fn read_records(
         };
         let record = &bytes[at..];
         let (opcode, body) = split_record(record).map_err(damage)?;
+        let end = at + RECORD_HEADER + body.len();
         let result = match opcode {
             op::CHUNK => read_chunk(&record[..RECORD_HEADER + body.len()], body, &mut visit),
-            op::FOOTER => return visit(Item::Footer).map_err(damage),
+            op::DATA_END => {
+                summary_start = Some(end);
+                check_data_end(body, &bytes[..at])
+            }
+            op::FOOTER => {
+                let start = summary_start.ok_or(Problem::NoDataEnd).map_err(damage)?;
+                return check_footer(bytes, start, at, body)
+                    .and_then(|()| visit(Item::Footer))
+                    .map_err(damage);
+            }
             _ => read_record(opcode, body, &mut visit),
         };
         result.map_err(damage)?;
-        at += RECORD_HEADER + body.len();
+        at = end;
+    }
+    Ok(())
+}
+
+/// The data end record's CRC (0: none recorded) against the data section before it.
+fn check_data_end(body: &[u8], data: &[u8]) -> Result<(), Problem> {
+    let saved = Fields::new(body, "data end").u32("data_section_crc")?;
+    let computed = crc32(data);
+    if saved != 0 && saved != computed {
+        return Err(Problem::DataCrc {
+            saved,
+            computed,
+            end: data.len() as u64,
+        });
+    }
+    Ok(())
+}
+
+/// The footer at `at` (its body `body`), the summary section between `summary_start` and it: the
+/// footer's summary start, its summary CRC (0: none recorded; it covers the summary section and the
+/// footer up to the CRC) and the end magic after it, with nothing more.
+fn check_footer(bytes: &[u8], summary_start: usize, at: usize, body: &[u8]) -> Result<(), Problem> {
+    let mut f = Fields::new(body, "footer");
+    let recorded = f.u64("summary_start")?;
+    let _summary_offset_start = f.u64("summary_offset_start")?;
+    let covered = at + RECORD_HEADER + (body.len() - f.rest.len());
+    let saved = f.u32("summary_crc")?;
+    // An empty summary section is recorded as 0.
+    let actual = if summary_start < at { summary_start } else { 0 };
+    if recorded != actual as u64 {
+        return Err(Problem::SummaryStart {
+            recorded,
+            actual: actual as u64,
+        });
+    }
+    let computed = crc32(&bytes[summary_start..covered]);
+    if saved != 0 && saved != computed {
+        return Err(Problem::SummaryCrc { saved, computed });
+    }
+    let after = &bytes[at + RECORD_HEADER + body.len()..];
+    if after != &MAGIC[..] {
+        return Err(Problem::EndMagic {
+            after: after.len() as u64,
+        });
     }
     Ok(())
 }

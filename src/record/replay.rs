@@ -41,10 +41,13 @@ pub struct Recording {
     pub attachments: Vec<(String, Vec<u8>)>,
     /// Every message, in file order.
     pub messages: Vec<RecordedMessage>,
-    /// The file ended properly (footer read); false for a file cut short.
+    /// The file ended properly (footer read, the data and summary CRCs and the end magic checked);
+    /// false for a file cut short or damaged.
     pub complete: bool,
-    /// Why reading stopped before the footer, when it stopped at damaged bytes (a file that simply
-    /// ends after a whole record has none).
+    /// Where and why reading stopped, when it found damaged bytes: before the footer (what follows
+    /// is lost), or at the data end record or footer (every message was read, but the data
+    /// section's CRC, the summary section and footer, or the end magic are damaged). A file that
+    /// simply ends after a whole record has none (and is not complete).
     pub damage: Option<Damage>,
 }
 

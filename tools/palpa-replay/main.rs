@@ -2,7 +2,9 @@
 //!
 //! * `--verify` rebuilds the scene from the recording, feeds the recorded inputs tick by tick and
 //!   compares every feedback and mesh message bit for bit; the first difference is printed (tick,
-//!   channel, field) and the exit code is 1.
+//!   channel, field) and the exit code is 1. A damaged or cut-short file is verified as far as it
+//!   can be read, reported as damaged (where and what, and how many ticks were verified), and never
+//!   passes: exit code 3 (the codes are listed by `--help`).
 //! * `--play [--speed X] [--prefix P]` publishes the recorded feedback and mesh messages on the
 //!   daemon's iceoryx2 services at the recorded pace (scaled), for testing a display without a device.
 //! * `--summary [--json]` prints duration, ticks, tools, contacts, max force, misses, rejects and the
@@ -16,16 +18,31 @@ use anyhow::{Result, anyhow, bail};
 use clap::Parser;
 use palpa::record::replay::{VerifyError, mesh_payload, read_recording_file, summarise, verify};
 
+/// Exit statuses, as `--help` lists them.
+const EXIT_CODES: &str = "Exit status:
+  0  success; with --verify: the recording is complete and undamaged and replays bit for bit
+  1  --verify found a difference (printed: tick, channel, field), or any error (the file cannot
+     be read at all, the recording cannot be replayed, --play failed, nothing to do)
+  2  bad command line (unknown option, missing FILE)
+  3  --verify: the file is damaged or cut short; everything readable before the damage replays
+     bit for bit (printed: where the damage is, what it is, how many ticks were verified)";
+
+/// `--verify`: the file is damaged or cut short, and what could be read replays bit for bit. (1 is
+/// a difference or any other error, 2 clap's usage errors.)
+const EXIT_DAMAGED: i32 = 3;
+
 #[derive(Parser)]
 #[command(
     name = "palpa-replay",
     version,
-    about = "Verify, play and summarise palpa recordings"
+    about = "Verify, play and summarise palpa recordings",
+    after_help = EXIT_CODES
 )]
 struct Args {
     /// The recording.
     file: PathBuf,
-    /// Replay the session and compare every feedback and mesh message bit for bit.
+    /// Replay the session and compare every feedback and mesh message bit for bit (exit 0: OK;
+    /// 1: a difference; 3: the file is damaged or cut short, its readable part replays).
     #[arg(long)]
     verify: bool,
     /// Publish the recorded feedback and mesh messages over iceoryx2 in real time.
@@ -111,22 +128,69 @@ fn main() -> Result<()> {
             eprintln!();
         }
         let _ = std::fs::remove_dir_all(&work);
-        match result {
-            Ok(report) => println!(
+        let damage = damage_of(&recording, &args.file);
+        match (result, damage) {
+            (Ok(report), None) => println!(
                 "verify: OK — {} ticks replayed, {} feedback and {} mesh messages identical (digest {:016x})",
                 report.ticks, report.feedback, report.meshes, report.digest
             ),
-            Err(VerifyError::Differs(d)) => {
+            (Ok(report), Some(damage)) => {
+                println!(
+                    "verify: DAMAGED — {} is damaged: {damage}",
+                    args.file.display()
+                );
+                if report.feedback + report.meshes == 0 {
+                    println!(
+                        "verify: no feedback or mesh message could be read before the damage: \
+                         nothing was verified"
+                    );
+                } else {
+                    println!(
+                        "verify: the {} ticks read before the damage replay bit for bit ({} feedback \
+                         and {} mesh messages identical, digest {:016x}); anything recorded beyond \
+                         the damage could not be read and is not verified",
+                        report.ticks, report.feedback, report.meshes, report.digest
+                    );
+                }
+                std::process::exit(EXIT_DAMAGED);
+            }
+            (Err(VerifyError::Differs(d)), damage) => {
                 println!("verify: FAILED at {d}");
+                if let Some(damage) = damage {
+                    println!("verify: the file is also damaged — {damage}");
+                }
                 std::process::exit(1);
             }
-            Err(e) => bail!("{e}"),
+            (Err(e), None) => bail!("{e}"),
+            (Err(e), Some(damage)) => bail!("{e} (the file is damaged — {damage})"),
         }
     }
     if args.play {
         play(&recording, &args)?;
     }
     Ok(())
+}
+
+/// Where and why a recording is not whole, or `None` for a complete, undamaged one (footer read, no
+/// damage before it).
+fn damage_of(
+    recording: &palpa::record::replay::Recording,
+    file: &std::path::Path,
+) -> Option<String> {
+    match (&recording.damage, recording.complete) {
+        (Some(d), _) => Some(format!("reading stopped {d}")),
+        (None, true) => None,
+        (None, false) => {
+            let end = std::fs::metadata(file).map_or_else(
+                |_| "the end of the file".to_string(),
+                |m| format!("byte {}", m.len()),
+            );
+            Some(format!(
+                "the file ends at {end} without its footer: cut short (a crash, or a copy cut off) \
+                 after its last complete record"
+            ))
+        }
+    }
 }
 
 /// Largest step between the log times of consecutive messages --play accepts (1 min).
