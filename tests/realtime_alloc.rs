@@ -11,8 +11,8 @@ use palpa::world::World;
 
 struct Counting;
 
-/// Counting is per thread: the step runs on the test's thread, while the test harness allocates on
-/// its own (reporting another test's result) at any time.
+// Counting is per thread: the step runs on the test's thread, while the test harness allocates on
+// its own (reporting another test's result) at any time.
 thread_local! {
     static COUNTING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
