@@ -8,6 +8,15 @@
 //! nothing, takes no lock, writes no file and logs nothing; its compute time and wake-up lateness are
 //! measured, and a tick whose compute exceeds the period is a synchronicity miss, counted and
 //! published.
+//!
+//! Failure paths: an iceoryx2 operation that fails inside the loop (a receive, a send, a loan, a
+//! connection update) is counted (`ipc_errors` in the statistics and the summary, the first one kept
+//! for the log) and the loop goes on: a lost feedback is replaced by the next tick's, a lost mesh
+//! message by the next keyframe. Only IPC failing on every tick for a second (or on every poll of a
+//! lockstep wait for a second) stops the loop, which then returns its summary with
+//! [`ServeSummary::fatal`] set, so the caller still finishes the recording. A tick on which the
+//! divergence guard restored a body sets flag 4 on every tool's feedback, records one
+//! `DIVERGENCE_GUARD` event per restored body (its name and the cause) and counts in `guard_events`.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
