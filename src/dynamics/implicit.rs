@@ -199,8 +199,13 @@ impl Implicit {
         }
         self.apply_edges(body, &self.start_velocity, &mut kv, 1.0, 0.0);
         Self::apply_links(body, &self.start_velocity, &mut kv, 1.0, 0.0);
-        for i in 0..n {
-            self.rhs[i] = (body.surface.force_in_world[i] - kv[i] * h) * h;
+        for ((rhs, force), kv) in self
+            .rhs
+            .iter_mut()
+            .zip(&body.surface.force_in_world)
+            .zip(&kv)
+        {
+            *rhs = (force - kv * h) * h;
         }
         self.rhs[n] = (body.rigid.force_in_world - kv[n] * h) * h;
         self.rhs[n + 1] = (body.rigid.torque_in_world - kv[n + 1] * h) * h;
@@ -374,12 +379,11 @@ impl Implicit {
         let n = s.mass.len();
         let centre = body.rigid.position_in_world;
         let (mut force, mut torque) = (Vec3::zeros(), Vec3::zeros());
-        for i in 0..n {
-            if self.pinned[i] {
-                continue;
+        for ((x, position), &pinned) in x.iter().zip(&s.position_in_world).zip(&self.pinned) {
+            if !pinned {
+                force += x;
+                torque += (position - centre).cross(x);
             }
-            force += x[i];
-            torque += (s.position_in_world[i] - centre).cross(&x[i]);
         }
         if !body.rigid.fixed {
             force += x[n];
