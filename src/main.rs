@@ -672,20 +672,53 @@ fn check(path: Option<&Path>) -> Result<()> {
             }
         );
         println!(
-            "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}); rigid links ω·Δt = {:.3} — {}",
+            "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}) — {}",
             body.name,
             m.worst_node,
             m.omega_dt,
             m.limit,
             m.margin,
-            m.rigid_omega_dt,
             if ok { "stable" } else { "UNSTABLE" }
+        );
+        let rigid_ok = m.rigid_margin >= 0.0;
+        unstable |= !rigid_ok && integrator == palpa::dynamics::Integrator::Symplectic;
+        use palpa::dynamics::Integrator as I;
+        let handled = match (
+            body.rigid.fixed,
+            rigid_ok,
+            integrator,
+            world.rigid_substeps_of(b),
+        ) {
+            (true, ..) => "fixed, never integrated".to_string(),
+            (_, _, I::Multirate, Some(n)) => format!(
+                "{}: sub-stepped ×{n} with every node by the multirate integrator",
+                if rigid_ok {
+                    "within the explicit limit, but its exchange with sub-stepped nodes is not"
+                } else {
+                    "past the explicit limit"
+                }
+            ),
+            (_, false, I::Multirate, None) if world.rigid_stepped_implicitly(b) => {
+                "past the explicit limit: stepped implicitly against the nodes by the multirate integrator"
+                    .to_string()
+            }
+            (_, true, ..) => "stable at dt".to_string(),
+            (_, false, I::Implicit, _) => {
+                "past the explicit limit: solved with the nodes by the implicit step".to_string()
+            }
+            (_, false, _, _) => {
+                "UNSTABLE: stepped explicitly past its limit, the guard will act".to_string()
+            }
+        };
+        println!(
+            "    {}: rigid component on its links ω·Δt = {:.3} (limit {:.3}, margin {:.3}) — {handled}",
+            body.name, m.rigid_omega_dt, m.rigid_limit, m.rigid_margin
         );
     }
     if unstable {
         println!(
-            "warning: a node is past the stability limit of the explicit scheme and this body uses it: the\n\
-             \x20 divergence guard will keep restoring it. Use integrator = \"multirate\" (the default) or \"implicit\".\n\
+            "warning: a node or a rigid component is past the stability limit of the explicit scheme and this\n\
+             \x20 body uses it: the divergence guard will keep restoring it. Use integrator = \"multirate\" (the default) or \"implicit\".\n\
              \x20 ω² ≤ (k_link + 2 Σ k_edges) / m: more nodes for the same surface_mass means lighter nodes and\n\
              \x20 higher frequencies (the paper's trap). Lower dt, raise surface_mass, or lower surface_stiffness,\n\
              \x20 link_stiffness or the damping (which also tightens the limit: ω·Δt ≤ √(4 − 2 Δt c/m))."

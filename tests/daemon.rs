@@ -639,6 +639,16 @@ fn the_divergence_guard_flags_feedback_records_events_and_counts() {
         .map(|f| f.tick)
         .collect();
     assert_eq!(recorded_flagged, flagged);
+    // A guarded session replays bit for bit, flags included.
+    let verify = std::process::Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .arg(&recording)
+        .arg("--verify")
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&verify.stdout).to_string()
+        + &String::from_utf8_lossy(&verify.stderr);
+    assert!(verify.status.success(), "{said}");
+    assert!(said.contains("verify: OK"), "{said}");
     std::fs::remove_file(scene).ok();
     std::fs::remove_file(recording).ok();
 }

@@ -461,8 +461,13 @@ pub fn verify(
                         replayed: "(no such tool)".into(),
                     }));
                 };
-                let payload =
+                let mut payload =
                     feedback_payload(&world.tools[t], tick, connected[t], rejected[t], echo[t]);
+                // As the daemon sends it: flag 4 on every tool's feedback of a tick where the
+                // divergence guard restored a body.
+                if crate::daemon::guard_acted(world) {
+                    payload.flags |= crate::ipc::payload::FEEDBACK_DIVERGED;
+                }
                 report.feedback += 1;
                 feedback_message(name, &payload).encode_to_vec()
             } else {
