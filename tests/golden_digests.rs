@@ -12,7 +12,7 @@ mod common;
 
 use palpa::Vec3;
 use palpa::dynamics::Integrator;
-use palpa::scene::{default_scene, parse_scene};
+use palpa::scene::{default_scene, load_scene};
 use palpa::world::World;
 
 /// (name in the file, scene path or `None` for the embedded default, integrator override, ticks)
@@ -69,19 +69,10 @@ impl Fnv {
 fn world_for(path: Option<&str>, integrator: Option<Integrator>) -> World {
     let scene = match path {
         None => default_scene(),
-        Some(path) => {
-            let path = common::repo_root().join(path);
-            let mut text = std::fs::read_to_string(&path).unwrap();
-            if let Some(integrator) = integrator {
-                text = text.replacen(
-                    "[world]",
-                    &format!("[world]\nintegrator = \"{}\"", integrator.name()),
-                    1,
-                );
-            }
-            parse_scene(&text, "golden.toml", path.parent().unwrap())
-                .unwrap_or_else(|e| panic!("{e}"))
-        }
+        Some(path) => match integrator {
+            Some(integrator) => common::scene_file_with_integrator(path, integrator.name()),
+            None => load_scene(&common::repo_root().join(path)).unwrap_or_else(|e| panic!("{e}")),
+        },
     };
     World::from_scene(&scene)
 }

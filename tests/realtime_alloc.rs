@@ -128,13 +128,8 @@ fn stiff_rigid_coupling_allocates_nothing_on_the_tick() {
         ("stiff_links.toml", "multirate"),
         ("mass_ratio.toml", "multirate"),
     ] {
-        let path = common::repo_root().join("scenes/stress").join(file);
-        let text = std::fs::read_to_string(&path).unwrap().replacen(
-            "[world]",
-            &format!("[world]\nintegrator = \"{integrator}\""),
-            1,
-        );
-        let scene = palpa::scene::parse_scene(&text, file, path.parent().unwrap()).unwrap();
+        let scene =
+            common::scene_file_with_integrator(&format!("scenes/stress/{file}"), integrator);
         let mut world = World::from_scene(&scene);
         for _ in 0..10 {
             world.step();

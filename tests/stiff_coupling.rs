@@ -14,20 +14,13 @@ mod common;
 
 use palpa::dynamics::Integrator;
 use palpa::dynamics::guard::body_energy;
-use palpa::scene::parse_scene;
 use palpa::world::World;
 
 fn world_with(integrator: Integrator) -> World {
-    let path = common::repo_root().join("scenes/stress/stiff_links.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let text = text.replacen(
-        "[world]",
-        &format!("[world]\nintegrator = \"{}\"", integrator.name()),
-        1,
-    );
-    let scene = parse_scene(&text, "stiff_links.toml", path.parent().unwrap())
-        .unwrap_or_else(|e| panic!("{e}"));
-    World::from_scene(&scene)
+    World::from_scene(&common::scene_file_with_integrator(
+        "scenes/stress/stiff_links.toml",
+        integrator.name(),
+    ))
 }
 
 struct Run {

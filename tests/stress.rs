@@ -9,7 +9,7 @@ mod common;
 
 use palpa::dynamics::Integrator;
 use palpa::dynamics::assess::{Assessment, assess};
-use palpa::scene::{load_scene, parse_scene};
+use palpa::scene::load_scene;
 use palpa::world::World;
 
 #[derive(Debug, PartialEq, Clone, Copy)]
@@ -19,14 +19,8 @@ enum Outcome {
 }
 
 fn run_case(file: &str, integrator: Integrator, seconds: f64) -> (Outcome, Assessment) {
-    let path = common::repo_root().join("scenes/stress").join(file);
-    let text = std::fs::read_to_string(&path).unwrap();
-    let text = text.replacen(
-        "[world]",
-        &format!("[world]\nintegrator = \"{}\"", integrator.name()),
-        1,
-    );
-    let scene = parse_scene(&text, file, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+    let scene =
+        common::scene_file_with_integrator(&format!("scenes/stress/{file}"), integrator.name());
     let mut world = World::from_scene(&scene);
     let run = assess(&mut world, seconds);
     assert!(

@@ -69,3 +69,18 @@ pub fn python_with(modules: &str) -> Option<PathBuf> {
     );
     None
 }
+
+/// A scene file of the repository (path relative to its root) with the world's integrator set to
+/// `integrator` (a scene name: "symplectic", "multirate", "implicit").
+pub fn scene_file_with_integrator(path: &str, integrator: &str) -> Scene {
+    let path = repo_root().join(path);
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .replacen(
+            "[world]",
+            &format!("[world]\nintegrator = \"{integrator}\""),
+            1,
+        );
+    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    parse_scene(&text, &name, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"))
+}
