@@ -484,6 +484,81 @@ fn control_pauses_resumes_and_resets() {
     stop(daemon);
 }
 
+#[test]
+fn a_hostile_control_client_gets_an_answer_to_every_request_and_the_daemon_goes_on() {
+    // Requests with arbitrary bits: commands from 0..6 half of the time (resets, pauses, resumes,
+    // keyframes among them), any u32 otherwise; reserved and argument fields filled with noise.
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let p = prefix("hostile_control");
+    let daemon = serve(&["--prefix", &p]);
+    let node = create_node().unwrap();
+    let control = client_of(control_service(&node, &p));
+    let stats = subscriber_of(stats_service(&node, &p));
+    let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let known = [
+        CONTROL_RESET,
+        CONTROL_PAUSE,
+        CONTROL_RESUME,
+        CONTROL_KEYFRAME,
+    ];
+    let (mut applied, mut refused) = (0, 0);
+    for k in 0..300 {
+        let bits = next();
+        let command = if bits & 1 == 0 {
+            (bits >> 8) as u32 % 6
+        } else {
+            (bits >> 32) as u32
+        };
+        let request = ControlRequestV1 {
+            command,
+            reserved: next() as u32,
+            argument: next(),
+        };
+        let pending = wait_for(10.0, || {
+            let pending = control.send_copy(request).unwrap();
+            (pending.number_of_server_connections() > 0).then_some(pending)
+        })
+        .expect("the daemon's control server");
+        let response = wait_for(5.0, || pending.receive().unwrap().map(|r| *r.payload()))
+            .unwrap_or_else(|| panic!("request {k} ({command}) unanswered"));
+        assert_eq!(response.command, command, "request {k} echoed");
+        if known.contains(&command) {
+            assert_eq!(response.status, 0, "request {k}: {command} is a command");
+            applied += 1;
+        } else {
+            assert_eq!(
+                response.status, -1,
+                "request {k}: {command} is not a command"
+            );
+            refused += 1;
+        }
+    }
+    assert!(
+        applied > 50 && refused > 100,
+        "{applied} applied, {refused} refused"
+    );
+    // Resume (the last pause may have held it) and watch the loop tick on.
+    let pending = control
+        .send_copy(ControlRequestV1 {
+            command: CONTROL_RESUME,
+            ..ControlRequestV1::default()
+        })
+        .unwrap();
+    wait_for(5.0, || pending.receive().unwrap().map(|r| *r.payload())).expect("resumed");
+    let first = wait_for(3.0, || newest_of(&stats)).expect("statistics");
+    let later = wait_for(5.0, || newest_of(&stats).filter(|s| s.tick > first.tick))
+        .expect("the daemon still ticks");
+    assert_eq!(later.paused, 0);
+    assert_eq!(later.guard_events, 0);
+    stop(daemon);
+}
+
 /// Reads the newest sample of a latest-value subscriber.
 fn newest_of<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
     subscriber: &iceoryx2::port::subscriber::Subscriber<Ipc, T, ()>,
