@@ -3,6 +3,8 @@
 //! service prefix; the tests run one at a time (the machine has two cores) and every child process is
 //! killed when its test ends, passing or not.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::Mutex;
@@ -57,37 +59,11 @@ fn device(args: &[&str]) -> Command {
 
 /// Sends SIGTERM and returns what the daemon printed; it must stop cleanly.
 fn stop(mut guard: Guard) -> String {
-    // SAFETY: kill(2) on our own child's pid.
-    unsafe {
-        libc_kill(guard.0.id() as i32, 15);
-    }
-    let deadline = Instant::now() + Duration::from_secs(10);
-    loop {
-        if let Some(status) = guard.0.try_wait().unwrap() {
-            assert!(status.success(), "palpa serve exited with {status}");
-            break;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "palpa serve did not stop on SIGTERM"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let mut out = String::new();
-    use std::io::Read;
-    guard
-        .0
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
+    common::sigterm(&guard.0);
+    let (status, out) =
+        common::wait_for_exit(&mut guard.0, 10, "palpa serve did not stop on SIGTERM");
+    assert!(status.success(), "palpa serve exited with {status}");
     out
-}
-
-unsafe extern "C" {
-    #[link_name = "kill"]
-    fn libc_kill(pid: i32, signal: i32) -> i32;
 }
 
 type Ipc = iceoryx2::prelude::ipc::Service;
@@ -494,13 +470,8 @@ fn a_hostile_control_client_gets_an_answer_to_every_request_and_the_daemon_goes_
     let node = create_node().unwrap();
     let control = client_of(control_service(&node, &p));
     let stats = subscriber_of(stats_service(&node, &p));
-    let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut rng = common::Rng(0x5eed_0003);
+    let mut next = move || rng.next();
     let known = [
         CONTROL_RESET,
         CONTROL_PAUSE,
@@ -572,24 +543,7 @@ fn newest_of<T: std::fmt::Debug + Copy + iceoryx2::prelude::ZeroCopySend>(
 
 /// Waits (watchdog 20 s) for a process to end on its own and returns its status and output.
 fn wait_end(mut guard: Guard) -> (std::process::ExitStatus, String) {
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let status = loop {
-        if let Some(status) = guard.0.try_wait().unwrap() {
-            break status;
-        }
-        assert!(Instant::now() < deadline, "palpa serve did not stop");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let mut out = String::new();
-    use std::io::Read;
-    guard
-        .0
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
-    (status, out)
+    common::wait_for_exit(&mut guard.0, 20, "palpa serve did not stop")
 }
 
 #[test]

@@ -5,6 +5,9 @@
 //! sends a non-finite number, answers the good poses once the tool is picked up again, and a time
 //! stamp jump does not widen the speed limit. Every wait has a watchdog; nothing is timed.
 
+mod common;
+
+use common::Rng;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -19,33 +22,6 @@ impl Drop for Guard {
     fn drop(&mut self) {
         let _ = self.0.kill();
         let _ = self.0.wait();
-    }
-}
-
-unsafe extern "C" {
-    #[link_name = "kill"]
-    fn libc_kill(pid: i32, signal: i32) -> i32;
-}
-
-/// splitmix64: a seeded stream of random words.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn bits(&mut self) -> f64 {
-        f64::from_bits(self.next())
     }
 }
 
@@ -100,18 +76,18 @@ fn hostile(rng: &mut Rng, seq: u64) -> ToolPoseV1 {
         // A special value in one of the eight numbers.
         1 => {
             let mut p = pose(seq, t, near(rng));
-            let v = specials[rng.below(specials.len() as u64) as usize];
+            let v = specials[rng.below(specials.len())];
             match rng.below(8) {
-                k @ 0..3 => p.position[k as usize] = v,
-                k @ 3..7 => p.orientation[k as usize - 3] = v,
+                k @ 0..3 => p.position[k] = v,
+                k @ 3..7 => p.orientation[k - 3] = v,
                 _ => p.jaw = v,
             }
             p
         }
         // Denormal positions and jaw, a valid quaternion: finite, so possibly accepted.
         2 => {
-            let mut p = pose(seq, t, [f64::from_bits(rng.below(1 << 52)); 3]);
-            p.jaw = f64::from_bits(rng.below(1 << 52));
+            let mut p = pose(seq, t, [f64::from_bits(rng.below_u64(1 << 52)); 3]);
+            p.jaw = f64::from_bits(rng.below_u64(1 << 52));
             p
         }
         // Zero, tiny and non-unit quaternions.
@@ -125,11 +101,11 @@ fn hostile(rng: &mut Rng, seq: u64) -> ToolPoseV1 {
             p
         }
         // The sequence number goes backwards.
-        4 => pose(seq.saturating_sub(1 + rng.below(50)), t, near(rng)),
+        4 => pose(seq.saturating_sub(1 + rng.below_u64(50)), t, near(rng)),
         // The device clock jumps by up to an hour, forwards or back to 0, with the pose far away.
         5 => {
             let jump = if rng.below(2) == 0 {
-                t + rng.below(3_600_000_000_000)
+                t + rng.below_u64(3_600_000_000_000)
             } else {
                 0
             };
@@ -281,27 +257,8 @@ fn a_hostile_bridge_cannot_make_the_daemon_send_a_non_finite_number() {
     assert!(received >= 4000);
 
     // The daemon is alive and stops cleanly; it counted the rejections.
-    // SAFETY: kill(2) on our own child's pid.
-    unsafe {
-        libc_kill(daemon.0.id() as i32, 15);
-    }
-    let watchdog = Instant::now() + Duration::from_secs(10);
-    let status = loop {
-        if let Some(status) = daemon.0.try_wait().unwrap() {
-            break status;
-        }
-        assert!(Instant::now() < watchdog, "palpa serve does not stop");
-        std::thread::sleep(Duration::from_millis(10));
-    };
-    let mut out = String::new();
-    use std::io::Read;
-    daemon
-        .0
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
+    common::sigterm(&daemon.0);
+    let (status, out) = common::wait_for_exit(&mut daemon.0, 10, "palpa serve does not stop");
     assert!(status.success(), "{status}: {out}");
     let line = out
         .lines()

@@ -204,36 +204,7 @@ fn serve_recording(prefix: &str, path: &Path, extra: &[&str]) -> Child {
 
 /// Waits for the process to end (watchdog 30 s); its status, standard output and error.
 fn ended(mut child: Child) -> (std::process::ExitStatus, String) {
-    let deadline = Instant::now() + Duration::from_secs(30);
-    let status = loop {
-        if let Some(status) = child.0.try_wait().unwrap() {
-            break status;
-        }
-        assert!(Instant::now() < deadline, "palpa serve does not stop");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    use std::io::Read;
-    let mut text = String::new();
-    child
-        .0
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut text)
-        .unwrap();
-    child
-        .0
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut text)
-        .unwrap();
-    (status, text)
-}
-
-unsafe extern "C" {
-    #[link_name = "kill"]
-    fn libc_kill(pid: i32, signal: i32) -> i32;
+    common::wait_for_exit(&mut child.0, 30, "palpa serve does not stop")
 }
 
 /// Drives a lockstep daemon's probe with `count` poses (a press), each answered before the next.
@@ -331,9 +302,7 @@ fn serve_stopped_by_sigterm_leaves_a_complete_recording() {
     let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
     drive(&prefix, 1500);
     // SAFETY: kill(2) on our own child.
-    unsafe {
-        libc_kill(daemon.0.id() as i32, 15);
-    }
+    common::sigterm(&daemon.0);
     let (status, text) = ended(daemon);
     assert!(status.success(), "{status}: {text}");
     let summary = summary_of(&path);
@@ -413,9 +382,7 @@ fn palpa_run_stopped_by_sigterm_finishes_its_recording() {
         std::thread::sleep(Duration::from_millis(50));
     }
     // SAFETY: kill(2) on our own child.
-    unsafe {
-        libc_kill(run.0.id() as i32, 15);
-    }
+    common::sigterm(&run.0);
     let (status, text) = ended(run);
     assert_eq!(status.code(), Some(1), "{text}");
     assert!(text.contains("stopped by a signal after "), "{text}");

@@ -84,3 +84,76 @@ pub fn scene_file_with_integrator(path: &str, integrator: &str) -> Scene {
     let name = path.file_name().unwrap().to_string_lossy().into_owned();
     parse_scene(&text, &name, path.parent().unwrap()).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// splitmix64: a seeded, reproducible stream of random words for the tests that mangle inputs.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// The next word.
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// A number in `0..n` (0 when n is 0).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+
+    /// A number in `0..n` (n > 0), as a word.
+    pub fn below_u64(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+
+    /// A number in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Any 64 bits as a double (NaN, infinities and denormals included).
+    pub fn bits(&mut self) -> f64 {
+        f64::from_bits(self.next())
+    }
+}
+
+unsafe extern "C" {
+    #[link_name = "kill"]
+    fn libc_kill(pid: i32, signal: i32) -> i32;
+}
+
+/// Sends SIGTERM to a child process.
+pub fn sigterm(child: &std::process::Child) {
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe {
+        libc_kill(child.id() as i32, 15);
+    }
+}
+
+/// Waits for a child process to end (a watchdog of `seconds`, failing the test with `what` past it);
+/// returns its status and its standard output followed by its standard error, where they are piped.
+pub fn wait_for_exit(
+    child: &mut std::process::Child,
+    seconds: u64,
+    what: &str,
+) -> (std::process::ExitStatus, String) {
+    use std::io::Read;
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(seconds);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(std::time::Instant::now() < deadline, "{what}");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    let mut text = String::new();
+    if let Some(mut out) = child.stdout.take() {
+        out.read_to_string(&mut text).unwrap();
+    }
+    if let Some(mut err) = child.stderr.take() {
+        err.read_to_string(&mut text).unwrap();
+    }
+    (status, text)
+}
