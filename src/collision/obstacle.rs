@@ -57,6 +57,20 @@ impl ContactPlane {
 }
 
 impl ObstacleShape {
+    /// The plane itself when the shape is a plane (the contact stages' fast path).
+    pub fn as_plane(&self) -> Option<ContactPlane> {
+        match self {
+            ObstacleShape::Plane {
+                point_in_world,
+                normal_in_world,
+            } => Some(ContactPlane {
+                normal_in_world: *normal_in_world,
+                point_in_world: *point_in_world,
+            }),
+            _ => None,
+        }
+    }
+
     /// Signed distance of `p` to the obstacle surface: negative inside.
     pub fn signed_distance(&self, p: &Vec3) -> f64 {
         match self {

@@ -10,7 +10,7 @@
 
 use crate::Vec3;
 use crate::body::Surface;
-use crate::collision::obstacle::{ContactPlane, Obstacle, ObstacleShape};
+use crate::collision::obstacle::{ContactPlane, Obstacle};
 
 /// Resolves every node of `surface` against every obstacle (obstacles in scene order, each node
 /// against them in that order); returns how many node–obstacle contacts were found this step.
@@ -26,16 +26,9 @@ pub fn resolve_nodes_against_obstacles(
     let mut contacts = 0;
     let n = surface.position_in_world.len();
     for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
-        match &obstacle.shape {
+        match obstacle.shape.as_plane() {
             // The common case gets a tight loop: one dot product per node.
-            ObstacleShape::Plane {
-                point_in_world,
-                normal_in_world,
-            } => {
-                let plane = ContactPlane {
-                    normal_in_world: *normal_in_world,
-                    point_in_world: *point_in_world,
-                };
+            Some(plane) => {
                 for i in 0..n {
                     if plane.signed_distance(&surface.next_position_in_world[i]) < 0.0 {
                         *reaction += resolve_node(surface, i, &plane, obstacle, dt);
@@ -43,7 +36,8 @@ pub fn resolve_nodes_against_obstacles(
                     }
                 }
             }
-            shape => {
+            None => {
+                let shape = &obstacle.shape;
                 for i in 0..n {
                     let start = surface.position_in_world[i];
                     let end = surface.next_position_in_world[i];
@@ -111,18 +105,9 @@ pub fn resolve_point(
 
 /// The contact plane of a point moving from `start` to `end` against `obstacle`, if it ends inside.
 pub fn point_contact_plane(obstacle: &Obstacle, start: &Vec3, end: &Vec3) -> Option<ContactPlane> {
-    match &obstacle.shape {
-        ObstacleShape::Plane {
-            point_in_world,
-            normal_in_world,
-        } => {
-            let plane = ContactPlane {
-                normal_in_world: *normal_in_world,
-                point_in_world: *point_in_world,
-            };
-            (plane.signed_distance(end) < 0.0).then_some(plane)
-        }
-        shape => shape.contact_plane(start, end),
+    match obstacle.shape.as_plane() {
+        Some(plane) => (plane.signed_distance(end) < 0.0).then_some(plane),
+        None => obstacle.shape.contact_plane(start, end),
     }
 }
 
