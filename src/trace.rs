@@ -7,7 +7,7 @@ use std::io::Write;
 use crate::world::World;
 
 /// The trace header.
-pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration,integrator,substeps,worst_omega_dt,stability_margin,guard_events";
+pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration,integrator,substeps,worst_omega_dt,stability_margin,guard_events,boundary_edges";
 
 /// Writes the header line.
 pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
@@ -60,7 +60,7 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             .map_or(String::new(), |g| g.to_string());
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             world.tick,
             world.time(),
             body.name,
@@ -87,7 +87,8 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             world.substeps_of(b).0,
             margin.omega_dt,
             margin.margin,
-            world.guards[b].events
+            world.guards[b].events,
+            body.boundary_edges
         )?;
     }
     Ok(())

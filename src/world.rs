@@ -25,9 +25,10 @@ use crate::dynamics::integrate::{
 use crate::dynamics::multirate::Multirate;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
 use crate::scene::{Scene, WorldParams};
+use crate::tool::ToolShape;
 use crate::tool::{Feedback, Tool};
+use crate::topology::Cutter;
 use crate::topology::refine::Refinement;
-use crate::topology::{POOL_NODES, reserve_for_subdivision};
 
 /// Scales a tool's feedback force down to its `max_force`, flagging it.
 fn clamp_feedback(tool: &mut Tool) {
@@ -58,6 +59,8 @@ pub struct Systems {
     pub body_contact: bool,
     /// Some body refines at tool contact.
     pub subdivision: bool,
+    /// Some body can be cut and some tool is a blade.
+    pub cutting: bool,
 }
 
 impl Systems {
@@ -77,6 +80,7 @@ impl Systems {
             (self.body_contact, "body_broad_phase"),
             (self.body_contact, "body_ccd"),
             (self.subdivision, "subdivision"),
+            (self.cutting, "cutting"),
         ] {
             if on {
                 names.push(name);
@@ -106,6 +110,10 @@ pub struct StepCounters {
     pub refinements: u32,
     /// Inserted nodes removed again this step.
     pub coarsenings: u32,
+    /// Bodies a blade cut this step (their mesh changed).
+    pub cuts: u32,
+    /// Edges opened by cuts this step.
+    pub opened_edges: u32,
 }
 
 /// Everything simulated, and the step.
@@ -132,6 +140,10 @@ pub struct World {
     pub guards: Vec<Guard>,
     /// Adaptive subdivision state of each body (`None` where the scene leaves it off).
     pub refinements: Vec<Option<Refinement>>,
+    /// Cutting state of each body (`None` where the scene leaves it off).
+    pub cutters: Vec<Option<Cutter>>,
+    /// Magnitude of each tool's feedback at the end of the previous tick (N).
+    previous_force: Vec<f64>,
     /// Broad-phase scratch of the tool contact detection, per body.
     broad: Vec<BroadScratch>,
 }
@@ -146,11 +158,7 @@ enum BodySolver {
 
 /// The integrator of a body with scratch sized for it (and for its subdivision pool when on).
 fn solver_for(body: &Body, world_integrator: Integrator, dt: f64) -> BodySolver {
-    let room = if body.params.subdivision.is_some() {
-        POOL_NODES
-    } else {
-        0
-    };
+    let room = body.room_nodes();
     match body.params.integrator.unwrap_or(world_integrator) {
         Integrator::Symplectic => BodySolver::Symplectic,
         Integrator::Multirate => {
@@ -291,6 +299,47 @@ impl StageClock for StepProfile {
     }
 }
 
+/// Ticks a blade that pressed through a body's resistance must stay away from it before it presses
+/// again.
+const BLADE_AWAY_TICKS: u32 = 100;
+
+/// The bit of a tool in a mask of tools (tools past the 64th are never in a mask).
+fn tool_bit(tool: usize) -> u64 {
+    if tool < 64 { 1 << tool } else { 0 }
+}
+
+/// Which blades cut `body` this tick instead of pressing it: every blade when the body has no
+/// resistance; otherwise those that pressed through it (the force they felt last tick reached the
+/// resistance), which then let go of what they held.
+fn cutting_blade_mask(
+    cutter: &mut Cutter,
+    body: &mut Body,
+    tools: &[Tool],
+    previous_force: &[f64],
+) -> u64 {
+    let mut mask = 0;
+    for (index, tool) in tools.iter().enumerate() {
+        if !matches!(tool.shape, ToolShape::Blade { .. }) {
+            continue;
+        }
+        let resistance = cutter.settings.resistance;
+        if resistance > 0.0 && !cutter.through[index] {
+            if previous_force[index] < resistance {
+                continue;
+            }
+            cutter.through[index] = true;
+            cutter.away[index] = 0;
+            for contact in &mut body.surface.tool_contact {
+                if contact.tool == index as u32 {
+                    *contact = crate::contact::tool::ToolContact::default();
+                }
+            }
+        }
+        mask |= tool_bit(index);
+    }
+    mask
+}
+
 /// Rounds of contact and implicit re-solve per step (each pins the nodes the contact stage resolved).
 const CONTACT_ROUNDS: usize = 3;
 
@@ -313,6 +362,8 @@ impl World {
             solvers: Vec::new(),
             guards: Vec::new(),
             refinements: Vec::new(),
+            cutters: Vec::new(),
+            previous_force: Vec::new(),
             broad: Vec::new(),
         };
         world.assemble();
@@ -384,7 +435,17 @@ impl World {
             body_contact: self.bodies.len() >= 2,
             subdivision: !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_some()),
+            cutting: self
+                .tools
+                .iter()
+                .any(|t| matches!(t.shape, ToolShape::Blade { .. }))
+                && self.bodies.iter().any(|b| b.params.cutting.is_some()),
         };
+        for body in &mut self.bodies {
+            if body.room_nodes() > 0 {
+                body.reserve_room();
+            }
+        }
         self.body_contact = self
             .systems
             .body_contact
@@ -395,12 +456,22 @@ impl World {
             .bodies
             .iter_mut()
             .map(|b| {
-                b.params.subdivision.map(|settings| {
-                    reserve_for_subdivision(b);
-                    Refinement::new(b, settings)
-                })
+                b.params
+                    .subdivision
+                    .map(|settings| Refinement::new(b, settings))
             })
             .collect();
+        let tool_count = self.tools.len();
+        self.cutters = self
+            .bodies
+            .iter()
+            .map(|b| {
+                b.params
+                    .cutting
+                    .map(|settings| Cutter::new(b, settings, tool_count))
+            })
+            .collect();
+        self.previous_force = vec![0.0; tool_count];
         self.solvers = self
             .bodies
             .iter()
@@ -470,7 +541,8 @@ impl World {
         let gravity = self.params.gravity;
         let mut counters = StepCounters::default();
         let t_end = (self.tick + 1) as f64 * dt;
-        for tool in &mut self.tools {
+        for (tool, force) in self.tools.iter_mut().zip(self.previous_force.iter_mut()) {
+            *force = tool.feedback.force_in_world.norm();
             tool.begin_tick(t_end);
             tool.feedback = Feedback::default();
         }
@@ -479,13 +551,23 @@ impl World {
         }
         let systems = self.systems;
         let mut topology_changed = false;
-        for (((body, solver), refinement), broad) in self
+        for ((((body, solver), refinement), broad), cutter) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
             .zip(self.broad.iter_mut())
+            .zip(self.cutters.iter_mut())
         {
+            // Blades that cut this body pass through it instead of pressing (after pressing through
+            // its resistance, when it has one).
+            let mut cutting_blades: u64 = 0;
+            if systems.cutting
+                && let Some(cutter) = cutter.as_mut()
+            {
+                cutting_blades =
+                    cutting_blade_mask(cutter, body, &self.tools, &self.previous_force);
+            }
             clock.enter(Stage::Forces);
             accumulate_body_forces(body, &gravity);
             clock.enter(Stage::Contact);
@@ -511,6 +593,9 @@ impl World {
             }
             if systems.tool_contact {
                 for (tool_index, tool) in self.tools.iter_mut().enumerate() {
+                    if cutting_blades & tool_bit(tool_index) != 0 {
+                        continue;
+                    }
                     clock.enter(Stage::BroadPhase);
                     capture_broad_phase(&body.surface, tool, &mut broad.nodes);
                     clock.enter(Stage::ToolCcd);
@@ -526,7 +611,10 @@ impl World {
                         topology_changed = true;
                     }
                 }
-                for tool in &self.tools {
+                for (tool_index, tool) in self.tools.iter().enumerate() {
+                    if cutting_blades & tool_bit(tool_index) != 0 {
+                        continue;
+                    }
                     clock.enter(Stage::BroadPhase);
                     face_broad_phase(
                         &body.surface,
@@ -564,7 +652,8 @@ impl World {
                 }
             }
             if systems.tool_contact {
-                counters.tool_push_outs += push_out_of_tools(&mut body.surface, &self.tools, dt);
+                counters.tool_push_outs +=
+                    push_out_of_tools(&mut body.surface, &self.tools, cutting_blades, dt);
             }
         }
         clock.enter(Stage::BodyContact);
@@ -578,14 +667,55 @@ impl World {
                 body.rigid.integrate(dt);
             }
         }
-        // Coarsening, before the guard looks at the bodies.
+        // Cuts along the blades' sweeps, then coarsening, before the guard looks at the bodies.
         clock.enter(Stage::Subdivision);
-        for ((body, solver), refinement) in self
+        for (((body, solver), refinement), cutter) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
+            .zip(self.cutters.iter_mut())
         {
+            if systems.cutting
+                && let Some(cutter) = cutter.as_mut()
+            {
+                let mut changed = false;
+                for (tool_index, tool) in self.tools.iter().enumerate() {
+                    if !matches!(tool.shape, ToolShape::Blade { .. }) || tool.part_count == 0 {
+                        continue;
+                    }
+                    let pressing = cutter.settings.resistance > 0.0 && !cutter.through[tool_index];
+                    if pressing {
+                        continue;
+                    }
+                    let (start, end) = (tool.parts_start[0], tool.parts_end[0]);
+                    let step = cutter.cut(body, tool_index, [start.a, start.b], [end.a, end.b]);
+                    if cutter.settings.resistance > 0.0 {
+                        if step.nodes_near == 0 {
+                            cutter.away[tool_index] += 1;
+                            if cutter.away[tool_index] > BLADE_AWAY_TICKS {
+                                cutter.through[tool_index] = false;
+                                cutter.away[tool_index] = 0;
+                            }
+                        } else {
+                            cutter.away[tool_index] = 0;
+                        }
+                    }
+                    if step.changed {
+                        changed = true;
+                        counters.opened_edges += step.opened;
+                    }
+                }
+                if changed {
+                    counters.cuts += 1;
+                    cutter.changed_at = self.tick + 1;
+                    if let Some(refinement) = refinement.as_mut() {
+                        refinement.commit(body);
+                    }
+                    solver.topology_changed(body, dt);
+                    topology_changed = true;
+                }
+            }
             if let Some(refinement) = refinement.as_mut() {
                 let removed = refinement.coarsen(body, self.tick + 1, dt);
                 if removed > 0 {
@@ -609,16 +739,20 @@ impl World {
             .map(f64::abs)
             .sum();
         let check_energy = (self.tick + 1) % ENERGY_CHECK_EVERY == 0;
-        for ((body, guard), refinement) in self
+        for (((body, guard), refinement), cutter) in self
             .bodies
             .iter_mut()
             .zip(self.guards.iter_mut())
             .zip(&self.refinements)
+            .zip(&self.cutters)
         {
             guard.add_work(tool_work);
             let refined_now = refinement
                 .as_ref()
-                .is_some_and(|r| r.changed_at == self.tick + 1);
+                .is_some_and(|r| r.changed_at == self.tick + 1)
+                || cutter
+                    .as_ref()
+                    .is_some_and(|c| c.changed_at == self.tick + 1);
             let energy = (check_energy || refined_now || guard.energy_every_tick)
                 .then(|| body_energy(body, &gravity));
             if refined_now && let Some(e) = energy {

@@ -41,6 +41,8 @@ pub struct BodyParams {
     pub integrator: Option<crate::dynamics::Integrator>,
     /// Adaptive subdivision at tool contact, when on.
     pub subdivision: Option<crate::topology::SubdivisionSettings>,
+    /// Cutting by blades, when on.
+    pub cutting: Option<crate::topology::CuttingSettings>,
 }
 
 impl Default for BodyParams {
@@ -57,8 +59,22 @@ impl Default for BodyParams {
             fixed: false,
             integrator: None,
             subdivision: None,
+            cutting: None,
         }
     }
+}
+
+/// Most nodes, triangles and edges a body may reach: its own plus the room reserved for topology
+/// changes (subdivision pool, cutting pool). Every per-node, per-triangle and per-edge buffer of the
+/// body and of its solvers holds this much, so changes within the limits allocate nothing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Limits {
+    /// Nodes.
+    pub nodes: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Edge springs.
+    pub edges: usize,
 }
 
 /// Surface nodes, structure of arrays. Index `i` is node `i` in every array.
@@ -206,6 +222,10 @@ pub struct Body {
     /// Counts changes of the surface's topology (subdivisions and coarsenings), so that whoever
     /// mirrors the mesh knows when to send it whole again.
     pub topology_version: u64,
+    /// Surface edges used by exactly one triangle (the lips of cuts, a mesh's own border).
+    pub boundary_edges: u32,
+    /// How far the mesh may grow (see [`Limits`]); set by [`Body::reserve_room`].
+    pub limits: Limits,
 }
 
 /// Initial placement of a body in the world.
@@ -270,9 +290,11 @@ impl Body {
             .collect();
 
         let mut edges = Edges::default();
+        // A prestressed body's springs are shorter at rest than the mesh: the surface is in tension.
+        let rest_scale = 1.0 - params.cutting.map_or(0.0, |c| c.prestress);
         for [a, b] in mesh.edges() {
-            let rest =
-                (mesh.positions_in_body[b as usize] - mesh.positions_in_body[a as usize]).norm();
+            let rest = rest_scale
+                * (mesh.positions_in_body[b as usize] - mesh.positions_in_body[a as usize]).norm();
             edges.push(a, b, rest, params.surface_stiffness, params.surface_damping);
         }
 
@@ -313,21 +335,61 @@ impl Body {
             rigid,
             params: params.clone(),
             topology_version: 0,
+            boundary_edges: crate::topology::cut::count_boundary_edges(&mesh.triangles),
+            limits: Limits {
+                nodes: n,
+                triangles: mesh.triangles.len(),
+                edges: 0,
+            },
         };
+        body.limits.edges = body.edges.len();
         body.refresh_diagonals();
         body
     }
 
-    /// Most nodes and triangles the body can have: its own, plus the subdivision pool when on.
-    pub fn mesh_capacity(&self) -> (usize, usize) {
-        let room = if self.params.subdivision.is_some() {
+    /// Nodes of room the body's topology changes may use: the subdivision pool and the cutting pool.
+    pub fn room_nodes(&self) -> usize {
+        let subdivision = if self.params.subdivision.is_some() {
             crate::topology::POOL_NODES
         } else {
             0
         };
+        subdivision + self.params.cutting.map_or(0, |c| c.max_nodes)
+    }
+
+    /// Reserves the room of [`Body::room_nodes`] in every buffer (2 triangles and 3 edges per node)
+    /// and sets [`Body::limits`] to it.
+    pub fn reserve_room(&mut self) {
+        let room = self.room_nodes();
+        let n = self.node_count();
+        let t = self.surface.triangles.len();
+        let e = self.edges.len();
+        let limits = Limits {
+            nodes: n + room,
+            triangles: t + 2 * room,
+            edges: e + 3 * room,
+        };
+        self.surface.reserve_nodes(limits.nodes - n);
+        self.surface.triangles.reserve(limits.triangles - t);
+        self.edges.reserve(limits.edges - e);
+        self.limits = limits;
+    }
+
+    /// Whether the mesh can take `nodes`, `triangles` and `edges` more within its limits.
+    pub fn has_room(&self, nodes: usize, triangles: usize, edges: usize) -> bool {
+        self.node_count() + nodes <= self.limits.nodes
+            && self.surface.triangles.len() + triangles <= self.limits.triangles
+            && self.edges.len() + edges <= self.limits.edges
+    }
+
+    /// Most nodes and triangles the body can have: its own, plus the subdivision and cutting pools.
+    pub fn mesh_capacity(&self) -> (usize, usize) {
+        let room = self.room_nodes();
         (
-            self.node_count() + room,
-            self.surface.triangles.len() + 2 * room,
+            self.limits.nodes.max(self.node_count() + room),
+            self.limits
+                .triangles
+                .max(self.surface.triangles.len() + 2 * room),
         )
     }
 

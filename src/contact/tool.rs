@@ -370,9 +370,13 @@ fn face_touched(surface: &Surface, tool: &Tool, &[a, b, c]: &[u32; 3]) -> bool {
 
 /// Step 4: moves any node left inside a tool capsule at the end of the tick onto its surface; returns
 /// how many were moved.
-pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], dt: f64) -> u32 {
+/// Tools whose bit is set in `skip` (bit k for tool k) are left out: blades cutting this body.
+pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f64) -> u32 {
     let mut moved = 0;
-    for tool in tools {
+    for (index, tool) in tools.iter().enumerate() {
+        if index < 64 && skip & (1 << index) != 0 {
+            continue;
+        }
         let mut reach = Aabb::empty();
         let mut margin: f64 = 0.0;
         for part in &tool.parts_end[..tool.part_count] {

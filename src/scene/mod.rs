@@ -427,6 +427,70 @@ impl Ctx<'_> {
         }))
     }
 
+    fn cutting(
+        &self,
+        section: &Spanned<CuttingSection>,
+    ) -> Result<Option<crate::topology::CuttingSettings>, SceneError> {
+        let s = section.get_ref();
+        if s.enabled == Some(false) {
+            return Ok(None);
+        }
+        let d = crate::topology::CuttingSettings::default();
+        let min_angle = self.number(
+            s.min_angle.as_ref(),
+            d.min_angle_deg,
+            "min_angle",
+            Rule::Positive,
+        )?;
+        if min_angle > 30.0 {
+            let span = s.min_angle.as_ref().map_or(section.span(), |v| v.span());
+            return Err(self.error(
+                span,
+                format!("`min_angle` must be at most 30 (degrees), found {min_angle}"),
+            ));
+        }
+        let prestress = self.number(
+            s.prestress.as_ref(),
+            d.prestress,
+            "prestress",
+            Rule::NonNegative,
+        )?;
+        if prestress >= 0.5 {
+            let span = s.prestress.as_ref().map_or(section.span(), |v| v.span());
+            return Err(self.error(
+                span,
+                format!("`prestress` must be below 0.5 (a fraction of the rest length), found {prestress}"),
+            ));
+        }
+        let max_nodes = match &s.max_nodes {
+            None => d.max_nodes,
+            Some(v) if (16..=1 << 16).contains(v.get_ref()) => *v.get_ref() as usize,
+            Some(v) => {
+                return Err(self.error(
+                    v.span(),
+                    format!("`max_nodes` must be 16 to 65536, found {}", v.get_ref()),
+                ));
+            }
+        };
+        Ok(Some(crate::topology::CuttingSettings {
+            resistance: self.number(
+                s.resistance.as_ref(),
+                d.resistance,
+                "resistance",
+                Rule::NonNegative,
+            )?,
+            min_angle_deg: min_angle,
+            prestress,
+            max_nodes,
+            tolerance: self.number(
+                s.tolerance.as_ref(),
+                d.tolerance,
+                "tolerance",
+                Rule::Positive,
+            )?,
+        }))
+    }
+
     /// A name from the file, or the default; names appear in traces and service names, so they are
     /// kept to letters, digits, `_`, `-` and `.`.
     fn name(&self, value: Option<&Spanned<String>>, default: String) -> Result<String, SceneError> {
@@ -646,6 +710,10 @@ impl Ctx<'_> {
             subdivision: match &b.subdivision {
                 None => None,
                 Some(v) => self.subdivision(v)?,
+            },
+            cutting: match &b.cutting {
+                None => None,
+                Some(v) => self.cutting(v)?,
             },
         };
         let placement = Placement {

@@ -45,6 +45,18 @@ pub(super) struct BodySection {
     pub fixed: Option<bool>,
     pub integrator: Option<Spanned<String>>,
     pub subdivision: Option<Spanned<SubdivisionSection>>,
+    pub cutting: Option<Spanned<CuttingSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CuttingSection {
+    pub enabled: Option<bool>,
+    pub resistance: Option<Spanned<f64>>,
+    pub min_angle: Option<Spanned<f64>>,
+    pub prestress: Option<Spanned<f64>>,
+    pub max_nodes: Option<Spanned<u32>>,
+    pub tolerance: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]

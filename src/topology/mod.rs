@@ -24,7 +24,10 @@
 //! else changed. At most [`POOL_NODES`] insertions are held at once; with
 //! [`reserve_for_subdivision`] called first, neither operation allocates.
 
+pub mod cut;
 pub mod refine;
+
+pub use cut::{Cutter, CuttingSettings};
 
 use crate::Vec3;
 use crate::body::Body;
@@ -218,6 +221,12 @@ impl InsertionLog {
         self.entries.is_empty()
     }
 
+    /// Forgets every insertion: the refined mesh becomes the one coarsening returns to (a cut
+    /// renumbers nodes after the insertions, so they can no longer be undone one by one).
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
     /// The node the newest insertion added.
     pub fn newest(&self) -> Option<u32> {
         self.entries.last().map(|e| e.node)
@@ -227,9 +236,7 @@ impl InsertionLog {
 /// Reserves room in every per-node, per-edge and per-triangle array of `body` for [`POOL_NODES`]
 /// insertions, so that subdividing afterwards allocates nothing.
 pub fn reserve_for_subdivision(body: &mut Body) {
-    body.surface.reserve_nodes(POOL_NODES);
-    body.surface.triangles.reserve(2 * POOL_NODES);
-    body.edges.reserve(3 * POOL_NODES);
+    body.reserve_room();
 }
 
 /// The edge between `a` and `b`, if any.
@@ -467,7 +474,7 @@ pub fn subdivide_face(
     rule: SpringRule,
     min_edge: f64,
 ) -> Result<u32, SubdivisionError> {
-    if log.entries.len() >= POOL_NODES {
+    if log.entries.len() >= POOL_NODES || !body.has_room(1, 2, 3) {
         return Err(SubdivisionError::PoolFull);
     }
     if w.iter().any(|x| !x.is_finite() || *x <= 0.0) {
@@ -549,7 +556,7 @@ pub fn subdivide_edge(
     rule: SpringRule,
     min_edge: f64,
 ) -> Result<u32, SubdivisionError> {
-    if log.entries.len() >= POOL_NODES {
+    if log.entries.len() >= POOL_NODES || !body.has_room(1, 2, 3) {
         return Err(SubdivisionError::PoolFull);
     }
     if !(t.is_finite() && t > 0.0 && t < 1.0) {

@@ -76,7 +76,7 @@ enum Split {
 impl Refinement {
     /// State for `body`, with room for [`POOL_NODES`] insertions.
     pub fn new(body: &Body, settings: SubdivisionSettings) -> Self {
-        let mut depth = Vec::with_capacity(body.node_count() + POOL_NODES);
+        let mut depth = Vec::with_capacity(body.limits.nodes.max(body.node_count() + POOL_NODES));
         depth.resize(body.node_count(), 0);
         Self {
             settings,
@@ -87,6 +87,14 @@ impl Refinement {
             changed_at: 0,
             min_mass: MIN_MASS_FRACTION * body.surface_mass() / body.node_count().max(1) as f64,
         }
+    }
+
+    /// Makes the refined mesh permanent (after a cut changed the body): nothing inserted so far will
+    /// be coarsened, and nodes the cut added get depth 0.
+    pub fn commit(&mut self, body: &Body) {
+        self.log.clear();
+        self.last_held.clear();
+        self.depth.resize(body.node_count(), 0);
     }
 
     /// Nodes inserted and not yet removed.

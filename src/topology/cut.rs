@@ -1,0 +1,1330 @@
+//! Cutting (MODEL.md §6): a blade's swept segment splits the surface along its path, tick by tick.
+//!
+//! One cut step takes the quadrilateral the blade's cutting segment swept during the tick (start
+//! segment a₀b₀, end segment a₁b₁, split into the triangles a₀b₀b₁ and a₀b₁a₁) and:
+//!
+//! 1. **Crossings.** Every surface edge that passes through the swept quad is crossed at a fraction t.
+//!    The crossing *snaps* to an end of the edge when that node lies within the fidelity tolerance of
+//!    the quad (max(`tolerance`, a quarter of the edge's rest length)); otherwise the edge is *split*
+//!    there (a new node: the paper's mass rule, momentum kept, the spring cut in two springs in
+//!    series). Snapped splits never fall within a quarter of an edge's end, which bounds the shapes.
+//! 2. **Templates.** Each triangle with split edges is replaced by children that keep its orientation
+//!    (one split: two children; two: a corner triangle and the better diagonal of the quad; three: four
+//!    children). When the best choice would still leave a child sharper than the quality bound
+//!    (min(`min_angle`, half the smallest angle of the original mesh)), the triangle's remaining edge
+//!    is split at its middle as well, and the choice made again.
+//! 3. **Path.** In each crossed triangle the cut joins its two path points (snapped corners, split
+//!    nodes, and the tip the blade left last tick); that edge of the new mesh is *opened*.
+//! 4. **Opening.** Around every node of an opened edge the triangles are grouped by the edges that stay
+//!    whole; every group but the first gets a copy of the node (same position and velocity, its share
+//!    of the mass and of the link in proportion to the group's rest area, the same homologue). An
+//!    opened edge becomes two lips, each a spring of half the stiffness on its own side.
+//!
+//! Mass and momentum are conserved by construction; kinetic energy is unchanged (copies move with the
+//! node). Everything works in fixed scratch sized when the cutter is built: a cut step allocates
+//! nothing, and refuses (and counts) a step the body's reserved room cannot take.
+
+use super::mass_fractions;
+use super::refine::min_angle_deg;
+use crate::Vec3;
+use crate::body::Body;
+use crate::collision::tool::{Aabb, closest_point_on_triangle};
+
+/// How a body is cut (scene key `cutting`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CuttingSettings {
+    /// Force the blade must press the tissue with before it cuts through (N); 0: the blade cuts every
+    /// edge it crosses and never presses.
+    pub resistance: f64,
+    /// Smallest angle a triangle the cut creates may have (degrees), bounded by half the original
+    /// mesh's smallest angle.
+    pub min_angle_deg: f64,
+    /// Pre-strain of the surface springs (0 ≤ prestress < 0.5): their rest lengths are the mesh's
+    /// times (1 − prestress), so the intact surface is under tension and the lips of a cut draw apart.
+    pub prestress: f64,
+    /// Nodes the cuts on this body may add in all (splits and copies); the pool reserved up front.
+    pub max_nodes: usize,
+    /// Least distance within which a node counts as on the blade's path (m); the tolerance is the
+    /// larger of this and a quarter of the local edge length.
+    pub tolerance: f64,
+}
+
+impl Default for CuttingSettings {
+    fn default() -> Self {
+        Self {
+            resistance: 0.0,
+            min_angle_deg: 15.0,
+            prestress: 0.0,
+            max_nodes: 2048,
+            tolerance: 5e-4,
+        }
+    }
+}
+
+/// Counters of a body's cuts since the start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CutCounters {
+    /// Ticks on which a cut changed the mesh.
+    pub steps: u64,
+    /// Edges split at a crossing (or in the middle, for quality).
+    pub splits: u64,
+    /// Node copies made to open the surface.
+    pub copies: u64,
+    /// Edges opened into two lips.
+    pub opened_edges: u64,
+    /// Cut steps refused: the reserved room was used up or too many edges were crossed at once.
+    pub refused: u64,
+    /// Triangles created below the quality bound (none expected; counted, never hidden).
+    pub quality_misses: u64,
+}
+
+/// Most edges one cut step may cross (a bound on the tick's cost).
+pub const MAX_CROSSINGS: usize = 256;
+/// Most triangles around one node that can be opened.
+const MAX_FAN: usize = 64;
+/// Rounds of quality splits per step.
+const QUALITY_ROUNDS: usize = 4;
+/// Fractions tried for a split made for quality.
+const QUALITY_FRACTIONS: [f64; 5] = [0.5, 0.4, 0.6, 0.33, 0.67];
+/// Most tips kept per blade.
+const MAX_TIPS: usize = 8;
+
+#[derive(Clone, Copy, Debug)]
+enum Choice {
+    Snap(u32),
+    Split,
+}
+
+/// One crossed edge (or one split for quality).
+#[derive(Clone, Copy, Debug)]
+struct Crossing {
+    a: u32,
+    b: u32,
+    edge: u32,
+    t: f64,
+    choice: Choice,
+    /// The node the crossing becomes: the snapped end or the new node.
+    node: u32,
+    /// Whether the path passes here (false for a split made for quality only).
+    on_path: bool,
+}
+
+/// A triangle the step replaces.
+#[derive(Clone, Copy, Debug)]
+struct Affected {
+    triangle: u32,
+    corners: [u32; 3],
+    /// Crossing on edge (0,1), (1,2), (2,0).
+    crossing: [Option<u16>; 3],
+    /// The path edge inside this triangle, if any (nodes of the new mesh).
+    path: Option<(u32, u32)>,
+    /// For two splits: use the diagonal from the split on the first split edge to the far corner.
+    diagonal_from_first: bool,
+}
+
+/// The tips a blade left in a body: path ends inside triangles, where the next step goes on.
+#[derive(Clone, Debug, Default)]
+pub struct Tips {
+    nodes: [u32; MAX_TIPS],
+    len: usize,
+}
+
+impl Tips {
+    fn push(&mut self, node: u32) {
+        if self.len < MAX_TIPS && !self.nodes[..self.len].contains(&node) {
+            self.nodes[self.len] = node;
+            self.len += 1;
+        }
+    }
+
+    fn contains(&self, node: u32) -> bool {
+        self.nodes[..self.len].contains(&node)
+    }
+
+    /// Forgets every tip (after a renumbering).
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+}
+
+/// What one cut step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CutStep {
+    /// Edges the swept quad crossed.
+    pub crossings: u32,
+    /// Edges split.
+    pub splits: u32,
+    /// Node copies made.
+    pub copies: u32,
+    /// Edges opened.
+    pub opened: u32,
+    /// Whether the mesh changed.
+    pub changed: bool,
+    /// Whether the step was refused (room or crossing bound).
+    pub refused: bool,
+    /// Nodes of the body within the swept region's box.
+    pub nodes_near: u32,
+}
+
+/// The cutting state of one body: settings, counters and fixed scratch.
+#[derive(Clone, Debug)]
+pub struct Cutter {
+    /// Settings from the scene.
+    pub settings: CuttingSettings,
+    /// Smallest angle a created triangle may have (degrees).
+    pub quality_bound_deg: f64,
+    /// Counters since the start.
+    pub counters: CutCounters,
+    /// Smallest angle among the triangles the cuts created (degrees; 180 when none).
+    pub smallest_created_angle_deg: f64,
+    /// Tick at whose end the mesh last changed by a cut (0: never).
+    pub changed_at: u64,
+    /// Longest rest edge of the mesh (m): cuts only make shorter ones.
+    longest: f64,
+    /// Tips left by each tool.
+    pub tips: Vec<Tips>,
+    /// Whether each tool has pressed through (resistance reached) and cuts.
+    pub through: Vec<bool>,
+    /// Ticks each tool has been away from the body while through.
+    pub away: Vec<u32>,
+    stamp: u32,
+    node_stamp: Vec<u32>,
+    cut_stamp: Vec<u32>,
+    copy_origin: Vec<u32>,
+    crossings: Vec<Crossing>,
+    split_rest: Vec<Vec3>,
+    affected: Vec<Affected>,
+    path_edges: Vec<(u32, u32)>,
+    /// Path edges not opened yet (a slit of one edge cannot open): kept for the next steps.
+    pending: Vec<(u32, u32)>,
+    fan: Vec<(u32, u32)>,
+    copies: Vec<u32>,
+}
+
+/// Distance from `p` to the swept quad (two triangles).
+fn quad_distance(p: &Vec3, quad: &[Vec3; 4]) -> f64 {
+    let [a0, b0, b1, a1] = quad;
+    let c1 = closest_point_on_triangle(p, a0, b0, b1);
+    let c2 = closest_point_on_triangle(p, a0, b1, a1);
+    (p - c1).norm().min((p - c2).norm())
+}
+
+/// Fraction along the segment p→q where it passes through triangle (a, b, c), if it does.
+fn segment_triangle(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<f64> {
+    let d = q - p;
+    let e1 = b - a;
+    let e2 = c - a;
+    let h = d.cross(&e2);
+    let det = e1.dot(&h);
+    let scale = e1.norm() * e2.norm() * d.norm();
+    if det.abs() <= 1e-12 * scale || scale <= 0.0 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = p - a;
+    let u = inv * s.dot(&h);
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = s.cross(&e1);
+    let v = inv * d.dot(&qv);
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = inv * e2.dot(&qv);
+    (0.0..=1.0).contains(&t).then_some(t)
+}
+
+/// Smallest angle of the original mesh of `body` (degrees), from the homologues.
+pub fn smallest_angle_deg(body: &Body) -> f64 {
+    let h = &body.surface.homologue_in_body;
+    body.surface
+        .triangles
+        .iter()
+        .map(|t| min_angle_deg(&t.map(|v| h[v as usize])))
+        .fold(180.0, f64::min)
+}
+
+/// Surface edges used by exactly one triangle (a full count, for checks; the body keeps its own).
+pub fn count_boundary_edges(triangles: &[[u32; 3]]) -> u32 {
+    let mut keys: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    keys.sort_unstable();
+    let mut count = 0;
+    let mut k = 0;
+    while k < keys.len() {
+        let mut j = k + 1;
+        while j < keys.len() && keys[j] == keys[k] {
+            j += 1;
+        }
+        if j - k == 1 {
+            count += 1;
+        }
+        k = j;
+    }
+    count
+}
+
+impl Cutter {
+    /// The cutting state of `body` for `tools` tools, with scratch for its reserved room.
+    pub fn new(body: &Body, settings: CuttingSettings, tools: usize) -> Self {
+        let capacity = body.limits.nodes.max(body.node_count());
+        let bound = settings.min_angle_deg.min(0.5 * smallest_angle_deg(body));
+        Self {
+            settings,
+            quality_bound_deg: bound,
+            counters: CutCounters::default(),
+            smallest_created_angle_deg: 180.0,
+            changed_at: 0,
+            longest: body.edges.rest_length.iter().fold(0.0f64, |m, &l| m.max(l))
+                / (1.0 - settings.prestress),
+            tips: vec![Tips::default(); tools],
+            through: vec![false; tools],
+            away: vec![0; tools],
+            stamp: 0,
+            node_stamp: vec![0; capacity],
+            cut_stamp: vec![0; capacity],
+            copy_origin: Vec::with_capacity(capacity),
+            crossings: Vec::with_capacity(MAX_CROSSINGS),
+            split_rest: Vec::with_capacity(MAX_CROSSINGS),
+            affected: Vec::with_capacity(4 * MAX_CROSSINGS),
+            path_edges: Vec::with_capacity(8 * MAX_CROSSINGS),
+            pending: Vec::with_capacity(4 * MAX_CROSSINGS),
+            fan: Vec::with_capacity(16 * MAX_CROSSINGS),
+            copies: Vec::with_capacity(4 * MAX_CROSSINGS),
+        }
+    }
+
+    fn next_stamp(&mut self) -> u32 {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.node_stamp.iter_mut().for_each(|s| *s = 0);
+            self.cut_stamp.iter_mut().for_each(|s| *s = 0);
+            self.stamp = 1;
+        }
+        self.stamp
+    }
+
+    fn tolerance(&self, rest_length: f64) -> f64 {
+        self.settings.tolerance.max(0.25 * rest_length)
+    }
+
+    /// Cuts `body` along the quad the blade of tool `tool` swept: `start` and `end` are its cutting
+    /// segment at the start and the end of the tick (world frame, the body's end-of-tick positions).
+    pub fn cut(
+        &mut self,
+        body: &mut Body,
+        tool: usize,
+        start: [Vec3; 2],
+        end: [Vec3; 2],
+    ) -> CutStep {
+        let mut step = CutStep::default();
+        let quad = [start[0], start[1], end[1], end[0]];
+        let area = 0.5
+            * ((quad[1] - quad[0]).cross(&(quad[2] - quad[0])).norm()
+                + (quad[2] - quad[0]).cross(&(quad[3] - quad[0])).norm());
+        let size = (quad[1] - quad[0]).norm().max((quad[2] - quad[3]).norm());
+        let stamp = self.next_stamp();
+        let n = body.node_count();
+        if self.node_stamp.len() < n {
+            // Cannot happen within the reserved room; refuse rather than grow on the tick.
+            step.refused = true;
+            self.counters.refused += 1;
+            return step;
+        }
+        let longest = self.longest;
+        let mut bounds = Aabb::empty();
+        for p in &quad {
+            bounds.include(p);
+        }
+        bounds.inflate(self.tolerance(longest));
+        let x = &body.surface.position_in_world;
+        step.nodes_near = x[..n]
+            .iter()
+            .filter(|p| bounds.overlaps_segment(p, p))
+            .count() as u32;
+        if area <= 1e-14 * size * size.max(1e-9) || size <= 0.0 {
+            return step;
+        }
+        // 1. Crossings.
+        self.crossings.clear();
+        self.split_rest.clear();
+        let edges = &body.edges;
+        for k in 0..edges.len() {
+            let (a, b) = (edges.a[k], edges.b[k]);
+            let (xa, xb) = (x[a as usize], x[b as usize]);
+            if bounds.outcode(&xa, &xb) != 0 {
+                continue;
+            }
+            let Some(t) = segment_triangle(&xa, &xb, &quad[0], &quad[1], &quad[2])
+                .or_else(|| segment_triangle(&xa, &xb, &quad[0], &quad[2], &quad[3]))
+            else {
+                continue;
+            };
+            if self.crossings.len() == MAX_CROSSINGS {
+                step.refused = true;
+                self.counters.refused += 1;
+                return step;
+            }
+            let tol = self.tolerance(edges.rest_length[k]);
+            let (da, db) = (quad_distance(&xa, &quad), quad_distance(&xb, &quad));
+            let choice = if da <= tol && da <= db {
+                Choice::Snap(a)
+            } else if db <= tol {
+                Choice::Snap(b)
+            } else {
+                Choice::Split
+            };
+            self.crossings.push(Crossing {
+                a,
+                b,
+                edge: k as u32,
+                t,
+                choice,
+                node: match choice {
+                    Choice::Snap(v) => v,
+                    Choice::Split => u32::MAX,
+                },
+                on_path: true,
+            });
+        }
+        step.crossings = self.crossings.len() as u32;
+        if self.crossings.is_empty() {
+            return step;
+        }
+        // Number the planned split nodes; mark crossing ends and tips.
+        self.number_splits(body);
+        // 2. Templates, with quality splits, up to three rounds.
+        for _round in 0..QUALITY_ROUNDS {
+            self.collect_affected(body, tool, stamp, &quad);
+            if !self.add_quality_splits(body) {
+                break;
+            }
+            self.number_splits(body);
+        }
+        self.collect_affected(body, tool, stamp, &quad);
+        // Room: nodes for splits and copies, triangles and edges for the templates and lips.
+        let splits = self
+            .crossings
+            .iter()
+            .filter(|c| matches!(c.choice, Choice::Split))
+            .count();
+        let path = self.affected.iter().filter(|a| a.path.is_some()).count();
+        let new_triangles: usize = self
+            .affected
+            .iter()
+            .map(|a| a.crossing.iter().filter(|c| self.is_split(**c)).count())
+            .sum();
+        let need_nodes = splits + 2 * path + 2;
+        let need_edges = splits + new_triangles + 2 * path + 2;
+        let limits = body.limits;
+        if n + need_nodes > limits.nodes
+            || body.surface.triangles.len() + new_triangles > limits.triangles
+            || body.edges.len() + need_edges > limits.edges
+            || n + need_nodes > self.node_stamp.len()
+        {
+            step.refused = true;
+            self.counters.refused += 1;
+            return step;
+        }
+        // Create the split nodes and split their springs.
+        for c in 0..self.crossings.len() {
+            if matches!(self.crossings[c].choice, Choice::Split) {
+                self.split_edge(body, c);
+                step.splits += 1;
+            }
+        }
+        // Rewrite the triangles.
+        let prestress = self.settings.prestress;
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            self.apply_template(body, &a, prestress);
+        }
+        // 3. Path edges, and tips for the next step.
+        self.path_edges.clear();
+        self.path_edges.extend_from_slice(&self.pending);
+        if let Some(tips) = self.tips.get_mut(tool) {
+            tips.clear();
+        }
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            if let Some(pair) = a.path {
+                if pair.0 != pair.1 && !self.path_edges.contains(&pair) {
+                    self.path_edges.push(pair);
+                }
+            }
+        }
+        self.collect_tips(body, tool);
+        // 4. Open the surface along the path.
+        let (copies, opened) = self.open(body);
+        self.keep_pending(body);
+        step.copies = copies;
+        step.opened = opened;
+        step.changed = step.splits > 0 || copies > 0 || opened > 0;
+        if step.changed {
+            body.topology_version += 1;
+            body.refresh_diagonals();
+            self.counters.steps += 1;
+            self.counters.splits += step.splits as u64;
+            self.counters.copies += copies as u64;
+            self.counters.opened_edges += opened as u64;
+        }
+        step
+    }
+
+    fn is_split(&self, c: Option<u16>) -> bool {
+        c.is_some_and(|c| matches!(self.crossings[c as usize].choice, Choice::Split))
+    }
+
+    /// Gives every planned split node its number and rest position.
+    fn number_splits(&mut self, body: &Body) {
+        let n = body.node_count() as u32;
+        self.split_rest.clear();
+        let h = &body.surface.homologue_in_body;
+        for c in &mut self.crossings {
+            if matches!(c.choice, Choice::Split) {
+                c.node = n + self.split_rest.len() as u32;
+                self.split_rest
+                    .push(h[c.a as usize] * (1.0 - c.t) + h[c.b as usize] * c.t);
+            }
+        }
+    }
+
+    fn rest_of(&self, body: &Body, v: u32) -> Vec3 {
+        let n = body.node_count() as u32;
+        if v < n {
+            body.surface.homologue_in_body[v as usize]
+        } else {
+            self.split_rest[(v - n) as usize]
+        }
+    }
+
+    fn crossing_on(&self, a: u32, b: u32) -> Option<u16> {
+        self.crossings
+            .iter()
+            .position(|c| (c.a == a && c.b == b) || (c.a == b && c.b == a))
+            .map(|k| k as u16)
+    }
+
+    /// Finds the triangles with a crossing (or a tip of `tool`) and decides their templates and path.
+    fn collect_affected(&mut self, body: &Body, tool: usize, stamp: u32, quad: &[Vec3; 4]) {
+        for c in &self.crossings {
+            self.node_stamp[c.a as usize] = stamp;
+            self.node_stamp[c.b as usize] = stamp;
+        }
+        let tips = self.tips.get(tool).cloned().unwrap_or_default();
+        self.affected.clear();
+        let n = body.node_count();
+        for (index, t) in body.surface.triangles.iter().enumerate() {
+            let marked = t
+                .iter()
+                .filter(|&&v| self.node_stamp[v as usize] == stamp)
+                .count();
+            let has_tip = t.iter().any(|&v| tips.contains(v));
+            if marked < 2 && !has_tip {
+                continue;
+            }
+            let crossing = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| self.crossing_on(t[i], t[j]));
+            if crossing.iter().all(Option::is_none) && !has_tip {
+                continue;
+            }
+            // Path points: crossings on the path, and tips within tolerance of this quad.
+            let mut points = [u32::MAX; 6];
+            let mut count = 0;
+            let add = |v: u32, points: &mut [u32; 6], count: &mut usize| {
+                if !points[..*count].contains(&v) && *count < 6 {
+                    points[*count] = v;
+                    *count += 1;
+                }
+            };
+            for c in crossing.iter().flatten() {
+                let c = &self.crossings[*c as usize];
+                if c.on_path {
+                    add(c.node, &mut points, &mut count);
+                }
+            }
+            // The crack tip the blade left: the path goes on from it.
+            for &v in t {
+                if tips.contains(v) && (v as usize) < n {
+                    add(v, &mut points, &mut count);
+                }
+            }
+            let splits = crossing.map(|c| {
+                c.and_then(|c| {
+                    let c = &self.crossings[c as usize];
+                    matches!(c.choice, Choice::Split).then_some(c.node)
+                })
+            });
+            let available = |p: u32, q: u32, diag_first: bool| -> bool {
+                edge_in_template(*t, splits, diag_first, p, q)
+            };
+            // Choose the path pair: nearest midpoint to the quad among pairs the template can hold.
+            let mut path = None;
+            let mut diagonal_from_first = self.best_diagonal(body, *t, splits).unwrap_or(true);
+            if count >= 2 {
+                let mut best = f64::INFINITY;
+                for i in 0..count {
+                    for j in i + 1..count {
+                        let (p, q) = (points[i], points[j]);
+                        let world_mid = 0.5 * (self.world_of(body, p) + self.world_of(body, q));
+                        let d = quad_distance(&world_mid, quad);
+                        for diag in [diagonal_from_first, !diagonal_from_first] {
+                            if available(p, q, diag) && d < best {
+                                best = d;
+                                path = Some((p, q, diag));
+                                break;
+                            }
+                        }
+                    }
+                }
+                if let Some((_, _, diag)) = path {
+                    diagonal_from_first = diag;
+                }
+            } else if count == 1 {
+                // The path ends in this triangle; no edge opens here.
+            }
+            self.affected.push(Affected {
+                triangle: index as u32,
+                corners: *t,
+                crossing,
+                path: path.map(|(p, q, _)| (p.min(q), p.max(q))),
+                diagonal_from_first,
+            });
+        }
+    }
+
+    fn world_of(&self, body: &Body, v: u32) -> Vec3 {
+        let x = &body.surface.position_in_world;
+        if (v as usize) < x.len() {
+            x[v as usize]
+        } else {
+            let c = self
+                .crossings
+                .iter()
+                .find(|c| c.node == v)
+                .expect("a planned node");
+            x[c.a as usize] * (1.0 - c.t) + x[c.b as usize] * c.t
+        }
+    }
+
+    /// For two splits, which diagonal gives the better smallest angle (true: from the first split's
+    /// node to the far corner); `None` otherwise.
+    fn best_diagonal(&self, body: &Body, t: [u32; 3], splits: [Option<u32>; 3]) -> Option<bool> {
+        if splits.iter().filter(|s| s.is_some()).count() != 2 {
+            return None;
+        }
+        let q1 = self.template_quality(body, t, splits, true);
+        let q2 = self.template_quality(body, t, splits, false);
+        Some(q1 >= q2)
+    }
+
+    fn template_quality(
+        &self,
+        body: &Body,
+        t: [u32; 3],
+        splits: [Option<u32>; 3],
+        diagonal_from_first: bool,
+    ) -> f64 {
+        self.template_quality_with(body, t, splits, diagonal_from_first, Vec3::zeros())
+    }
+
+    /// [`Cutter::template_quality`] where node `u32::MAX - 1` stands for a trial split at `trial`.
+    fn template_quality_with(
+        &self,
+        body: &Body,
+        t: [u32; 3],
+        splits: [Option<u32>; 3],
+        diagonal_from_first: bool,
+        trial: Vec3,
+    ) -> f64 {
+        let mut children = [[0u32; 3]; 4];
+        let count = template(
+            t,
+            splits,
+            diagonal_from_first,
+            &mut children,
+            &mut [(0, 0); 3],
+        )
+        .0;
+        let rest = |v: u32| {
+            if v == u32::MAX - 1 {
+                trial
+            } else {
+                self.rest_of(body, v)
+            }
+        };
+        children[..count]
+            .iter()
+            .map(|c| min_angle_deg(&c.map(rest)))
+            .fold(180.0, f64::min)
+    }
+
+    /// Adds a middle split on the unsplit edge of every two-split triangle whose best template is
+    /// below the quality bound; returns whether any was added.
+    fn add_quality_splits(&mut self, body: &Body) -> bool {
+        let mut added = false;
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            let splits = a.crossing.map(|c| {
+                c.and_then(|c| {
+                    let c = &self.crossings[c as usize];
+                    matches!(c.choice, Choice::Split).then_some(c.node)
+                })
+            });
+            let count = splits.iter().filter(|s| s.is_some()).count();
+            if count == 0 || count == 3 {
+                continue;
+            }
+            let quality = self.template_quality(body, a.corners, splits, a.diagonal_from_first);
+            if quality >= self.quality_bound_deg {
+                continue;
+            }
+            // Where to split an unsplit edge: the edge and fraction (near its middle) that give
+            // this triangle the best smallest angle.
+            let mut best = (-1.0, 0usize, 0.5);
+            for candidate in 0..3 {
+                if splits[candidate].is_some() {
+                    continue;
+                }
+                let (u, v) = (a.corners[candidate], a.corners[(candidate + 1) % 3]);
+                let mut trial = splits;
+                trial[candidate] = Some(u32::MAX - 1);
+                for along in QUALITY_FRACTIONS {
+                    let point =
+                        self.rest_of(body, u) * (1.0 - along) + self.rest_of(body, v) * along;
+                    let q = [true, false]
+                        .map(|d| self.template_quality_with(body, a.corners, trial, d, point))
+                        .into_iter()
+                        .fold(0.0, f64::max);
+                    if q > best.0 {
+                        best = (q, candidate, along);
+                    }
+                }
+            }
+            let (_, k, along) = best;
+            let (u, v) = (a.corners[k], a.corners[(k + 1) % 3]);
+            if self.crossing_on(u, v).is_some() || self.crossings.len() == MAX_CROSSINGS {
+                continue;
+            }
+            let Some(edge) = find_edge_index(body, u, v) else {
+                continue;
+            };
+            self.crossings.push(Crossing {
+                a: u,
+                b: v,
+                edge: edge as u32,
+                t: along,
+                choice: Choice::Split,
+                node: u32::MAX,
+                on_path: false,
+            });
+            added = true;
+        }
+        added
+    }
+
+    /// Appends the node of crossing `c` on its edge and cuts the edge's spring in two in series.
+    fn split_edge(&mut self, body: &mut Body, c: usize) {
+        let Crossing { a, b, edge, t, .. } = self.crossings[c];
+        let nu = body.params.air_viscosity;
+        let s = &mut body.surface;
+        let (ia, ib) = (a as usize, b as usize);
+        let w = [1.0 - t, t];
+        let fractions = mass_fractions(w, [s.mass[ia], s.mass[ib]]);
+        let taken = [fractions[0] * s.mass[ia], fractions[1] * s.mass[ib]];
+        let mass = taken[0] + taken[1];
+        let weighted = |v: &[Vec3]| (v[ia] * taken[0] + v[ib] * taken[1]) / mass;
+        let position = weighted(&s.position_in_world);
+        let next = weighted(&s.next_position_in_world);
+        let velocity = weighted(&s.velocity_in_world);
+        let homologue = s.homologue_in_body[ia] * w[0] + s.homologue_in_body[ib] * w[1];
+        let homologue_world = s.homologue_in_world[ia] * w[0] + s.homologue_in_world[ib] * w[1];
+        let k_link = s.link_stiffness[ia] * fractions[0] + s.link_stiffness[ib] * fractions[1];
+        let c_link = s.link_damping[ia] * fractions[0] + s.link_damping[ib] * fractions[1];
+        for (idx, i) in [ia, ib].into_iter().enumerate() {
+            s.mass[i] -= taken[idx];
+            s.inverse_mass[i] = 1.0 / s.mass[i];
+            s.air_damping[i] = nu * s.mass[i];
+            s.link_stiffness[i] *= 1.0 - fractions[idx];
+            s.link_damping[i] *= 1.0 - fractions[idx];
+        }
+        push_node(
+            body,
+            position,
+            next,
+            velocity,
+            mass,
+            homologue,
+            homologue_world,
+            k_link,
+            c_link,
+        );
+        let p = (body.node_count() - 1) as u32;
+        debug_assert_eq!(p, self.crossings[c].node);
+        let e = &mut body.edges;
+        let k = edge as usize;
+        let (rest, stiffness, damping) = (e.rest_length[k], e.stiffness[k], e.damping[k]);
+        // Edge k keeps its end `e.a[k]`; the other half is a new spring.
+        let (near, far, t_near) = if e.a[k] == a {
+            (a, b, t)
+        } else {
+            (b, a, 1.0 - t)
+        };
+        e.a[k] = near;
+        e.b[k] = p;
+        e.rest_length[k] = rest * t_near;
+        e.stiffness[k] = stiffness / t_near;
+        e.damping[k] = damping / t_near;
+        let t_far = 1.0 - t_near;
+        e.push(p, far, rest * t_far, stiffness / t_far, damping / t_far);
+        // A boundary edge split gives two boundary edges.
+        if self.edge_is_boundary(a, b) {
+            body.boundary_edges += 1;
+        }
+    }
+
+    /// Whether edge (a, b) has one triangle (read from the affected triangles, which hold every
+    /// triangle of a crossed edge).
+    fn edge_is_boundary(&self, a: u32, b: u32) -> bool {
+        let users = self
+            .affected
+            .iter()
+            .filter(|t| {
+                let c = t.corners;
+                (0..3).any(|k| {
+                    (c[k] == a && c[(k + 1) % 3] == b) || (c[k] == b && c[(k + 1) % 3] == a)
+                })
+            })
+            .count();
+        users == 1
+    }
+
+    /// Replaces an affected triangle by its template children and adds their inner edges.
+    fn apply_template(&mut self, body: &mut Body, a: &Affected, prestress: f64) {
+        let splits = a.crossing.map(|c| {
+            c.and_then(|c| {
+                let c = &self.crossings[c as usize];
+                matches!(c.choice, Choice::Split).then_some(c.node)
+            })
+        });
+        if splits.iter().all(Option::is_none) {
+            return;
+        }
+        let mut children = [[0u32; 3]; 4];
+        let mut inner = [(0u32, 0u32); 3];
+        let (count, inner_count) = template(
+            a.corners,
+            splits,
+            a.diagonal_from_first,
+            &mut children,
+            &mut inner,
+        );
+        let h = &body.surface.homologue_in_body;
+        for child in &children[..count] {
+            let angle = min_angle_deg(&child.map(|v| h[v as usize]));
+            self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
+            if angle < self.quality_bound_deg {
+                self.counters.quality_misses += 1;
+            }
+        }
+        let triangles = &mut body.surface.triangles;
+        triangles[a.triangle as usize] = children[0];
+        triangles.extend_from_slice(&children[1..count]);
+        let (k, c) = (body.params.surface_stiffness, body.params.surface_damping);
+        for &(u, v) in &inner[..inner_count] {
+            let rest = (h[u as usize] - h[v as usize]).norm() * (1.0 - prestress);
+            body.edges.push(u, v, rest, k, c);
+        }
+    }
+
+    fn collect_tips(&mut self, body: &Body, tool: usize) {
+        let _ = body;
+        let Some(tips) = self.tips.get_mut(tool) else {
+            return;
+        };
+        for a in &self.affected {
+            if a.path.is_some() {
+                continue;
+            }
+            for c in a.crossing.iter().flatten() {
+                let c = &self.crossings[*c as usize];
+                if c.on_path {
+                    tips.push(c.node);
+                }
+            }
+        }
+        // A tip the path went through is no longer a tip.
+        let mut kept = Tips::default();
+        for &v in &tips.nodes[..tips.len] {
+            let through = self
+                .path_edges
+                .iter()
+                .filter(|(p, q)| *p == v || *q == v)
+                .count();
+            if through < 2 {
+                kept.push(v);
+            }
+        }
+        *tips = kept;
+    }
+
+    /// Keeps the path edges that are still whole edges of the mesh (two triangles on the same two
+    /// nodes) for the next steps, within the pending list's room (the newest kept).
+    fn keep_pending(&mut self, body: &Body) {
+        self.pending.clear();
+        let room = self.pending.capacity();
+        let skip = self.path_edges.len().saturating_sub(room);
+        for &(p, q) in &self.path_edges[skip..] {
+            let range = fan_range(&self.fan, p);
+            let users = if range.is_empty() {
+                0
+            } else {
+                self.fan[range]
+                    .iter()
+                    .filter(|(_, t)| {
+                        let t = body.surface.triangles[*t as usize];
+                        t.contains(&p) && t.contains(&q)
+                    })
+                    .count()
+            };
+            if users == 2 {
+                self.pending.push((p, q));
+            }
+        }
+    }
+
+    /// Opens the path edges: copies nodes whose triangles fall apart into groups, and splits the
+    /// opened springs into lips. Returns (copies, opened edges).
+    fn open(&mut self, body: &mut Body) -> (u32, u32) {
+        if self.path_edges.is_empty() {
+            return (0, 0);
+        }
+        let stamp = self.next_stamp();
+        for &(p, q) in &self.path_edges {
+            self.cut_stamp[p as usize] = stamp;
+            self.cut_stamp[q as usize] = stamp;
+        }
+        // Fans: (node, triangle) for every corner on the path, sorted.
+        self.fan.clear();
+        for (index, t) in body.surface.triangles.iter().enumerate() {
+            for &v in t {
+                if self.cut_stamp[v as usize] == stamp && self.fan.len() < self.fan.capacity() {
+                    self.fan.push((v, index as u32));
+                }
+            }
+        }
+        self.fan.sort_unstable();
+        let n_before = body.node_count();
+        self.copy_origin.clear();
+        self.copies.clear();
+        let mut copies = 0;
+        let mut start = 0;
+        while start < self.fan.len() {
+            let v = self.fan[start].0;
+            let mut end = start;
+            while end < self.fan.len() && self.fan[end].0 == v {
+                end += 1;
+            }
+            if end - start <= MAX_FAN {
+                copies += self.split_fan(body, v, start, end);
+            }
+            start = end;
+        }
+        // Springs around copied nodes: each follows its triangles; an opened one becomes two lips.
+        let mut opened = 0;
+        if copies > 0 {
+            let n_after = body.node_count();
+            let edge_count = body.edges.len();
+            for k in 0..edge_count {
+                let (a, b) = (body.edges.a[k], body.edges.b[k]);
+                let touched =
+                    self.cut_stamp[a as usize] == stamp || self.cut_stamp[b as usize] == stamp;
+                if !touched {
+                    continue;
+                }
+                let mut pairs = [(u32::MAX, u32::MAX); 2];
+                let mut found = 0;
+                let fan_node = if self.cut_stamp[a as usize] == stamp {
+                    a
+                } else {
+                    b
+                };
+                let range = fan_range(&self.fan, fan_node);
+                for &(_, tri) in &self.fan[range] {
+                    let t = body.surface.triangles[tri as usize];
+                    let origin = |w: u32| -> u32 {
+                        if (w as usize) >= n_before && (w as usize) < n_after {
+                            self.copy_origin[w as usize - n_before]
+                        } else {
+                            w
+                        }
+                    };
+                    let ca = t.iter().copied().find(|&w| origin(w) == a);
+                    let cb = t.iter().copied().find(|&w| origin(w) == b);
+                    if let (Some(ca), Some(cb)) = (ca, cb)
+                        && found < 2
+                    {
+                        pairs[found] = (ca, cb);
+                        found += 1;
+                    }
+                }
+                if found == 0 {
+                    continue;
+                }
+                body.edges.a[k] = pairs[0].0;
+                body.edges.b[k] = pairs[0].1;
+                if found == 2 && pairs[0] != pairs[1] {
+                    let e = &mut body.edges;
+                    e.stiffness[k] *= 0.5;
+                    e.damping[k] *= 0.5;
+                    let (rest, stiffness, damping) =
+                        (e.rest_length[k], e.stiffness[k], e.damping[k]);
+                    e.push(pairs[1].0, pairs[1].1, rest, stiffness, damping);
+                    opened += 1;
+                    body.boundary_edges += 2;
+                }
+            }
+        }
+        (copies, opened)
+    }
+
+    /// Groups the triangles around `v` (fan entries `start..end`) by the edges that stay whole and
+    /// gives every group but the first a copy of `v`. Returns the copies made.
+    #[allow(clippy::needless_range_loop)] // fixed-size arrays indexed together
+    fn split_fan(&mut self, body: &mut Body, v: u32, start: usize, end: usize) -> u32 {
+        let count = end - start;
+        let mut parent = [0usize; MAX_FAN];
+        for (i, p) in parent.iter_mut().enumerate().take(count) {
+            *p = i;
+        }
+        fn find(parent: &mut [usize; MAX_FAN], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        let tris = &body.surface.triangles;
+        for i in 0..count {
+            let ti = tris[self.fan[start + i].1 as usize];
+            for j in i + 1..count {
+                let tj = tris[self.fan[start + j].1 as usize];
+                // Shared edge (v, w), w ≠ v, whole unless it is on the path.
+                for &w in &ti {
+                    if w == v || !tj.contains(&w) {
+                        continue;
+                    }
+                    let pair = (v.min(w), v.max(w));
+                    if !self.path_edges.contains(&pair) {
+                        let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
+                        if ri != rj {
+                            parent[ri.max(rj)] = ri.min(rj);
+                        }
+                    }
+                }
+            }
+        }
+        let mut roots = [usize::MAX; MAX_FAN];
+        let mut groups = 0;
+        let mut group_of = [0usize; MAX_FAN];
+        for i in 0..count {
+            let r = find(&mut parent, i);
+            let g = match roots[..groups].iter().position(|&x| x == r) {
+                Some(g) => g,
+                None => {
+                    roots[groups] = r;
+                    groups += 1;
+                    groups - 1
+                }
+            };
+            group_of[i] = g;
+        }
+        if groups < 2 {
+            return 0;
+        }
+        // Rest area of each group: mass and link shares.
+        let mut area = [0.0f64; MAX_FAN];
+        let h = &body.surface.homologue_in_body;
+        for i in 0..count {
+            let t = tris[self.fan[start + i].1 as usize];
+            let [a, b, c] = t.map(|w| h[w as usize]);
+            area[group_of[i]] += 0.5 * (b - a).cross(&(c - a)).norm();
+        }
+        let total: f64 = area[..groups].iter().sum();
+        let iv = v as usize;
+        let nu = body.params.air_viscosity;
+        let (m, k_link, c_link) = {
+            let s = &body.surface;
+            (s.mass[iv], s.link_stiffness[iv], s.link_damping[iv])
+        };
+        let mut given = 0.0;
+        let mut given_k = 0.0;
+        let mut given_c = 0.0;
+        for g in 1..groups {
+            let share = if total > 0.0 {
+                area[g] / total
+            } else {
+                1.0 / groups as f64
+            };
+            let (mass, k, c) = (m * share, k_link * share, c_link * share);
+            given += mass;
+            given_k += k;
+            given_c += c;
+            let s = &body.surface;
+            let (x, xn, vel, hb, hw) = (
+                s.position_in_world[iv],
+                s.next_position_in_world[iv],
+                s.velocity_in_world[iv],
+                s.homologue_in_body[iv],
+                s.homologue_in_world[iv],
+            );
+            push_node(body, x, xn, vel, mass, hb, hw, k, c);
+            let copy = (body.node_count() - 1) as u32;
+            self.copy_origin.push(v);
+            self.copies.push(copy);
+            for i in 0..count {
+                if group_of[i] == g {
+                    let tri = &mut body.surface.triangles[self.fan[start + i].1 as usize];
+                    for w in tri.iter_mut() {
+                        if *w == v {
+                            *w = copy;
+                        }
+                    }
+                }
+            }
+        }
+        let s = &mut body.surface;
+        s.mass[iv] = m - given;
+        s.inverse_mass[iv] = 1.0 / s.mass[iv];
+        s.air_damping[iv] = nu * s.mass[iv];
+        s.link_stiffness[iv] = k_link - given_k;
+        s.link_damping[iv] = c_link - given_c;
+        (groups - 1) as u32
+    }
+}
+
+/// The fan entries of node `v` (the fan is sorted by node).
+fn fan_range(fan: &[(u32, u32)], v: u32) -> std::ops::Range<usize> {
+    let start = fan.partition_point(|&(w, _)| w < v);
+    let end = fan.partition_point(|&(w, _)| w <= v);
+    start..end
+}
+
+/// The edge between `a` and `b`, if any.
+fn find_edge_index(body: &Body, a: u32, b: u32) -> Option<usize> {
+    let e = &body.edges;
+    (0..e.len()).find(|&k| (e.a[k] == a && e.b[k] == b) || (e.a[k] == b && e.b[k] == a))
+}
+
+/// Appends a node with every per-node value given.
+#[allow(clippy::too_many_arguments)]
+fn push_node(
+    body: &mut Body,
+    position: Vec3,
+    next: Vec3,
+    velocity: Vec3,
+    mass: f64,
+    homologue: Vec3,
+    homologue_world: Vec3,
+    k_link: f64,
+    c_link: f64,
+) {
+    let nu = body.params.air_viscosity;
+    let s = &mut body.surface;
+    s.position_in_world.push(position);
+    s.next_position_in_world.push(next);
+    s.velocity_in_world.push(velocity);
+    s.force_in_world.push(Vec3::zeros());
+    s.mass.push(mass);
+    s.inverse_mass.push(1.0 / mass);
+    s.air_damping.push(nu * mass);
+    s.homologue_in_body.push(homologue);
+    s.homologue_in_world.push(homologue_world);
+    s.link_stiffness.push(k_link);
+    s.link_damping.push(c_link);
+    s.tool_contact
+        .push(crate::contact::tool::ToolContact::default());
+    s.stiffness_diagonal.push(0.0);
+    s.damping_diagonal.push(0.0);
+}
+
+/// The children of triangle `t` with split nodes `splits` on its edges (0,1), (1,2), (2,0), in its
+/// orientation, and the inner edges they add. Returns (children, inner edges).
+fn template(
+    t: [u32; 3],
+    splits: [Option<u32>; 3],
+    diagonal_from_first: bool,
+    children: &mut [[u32; 3]; 4],
+    inner: &mut [(u32, u32); 3],
+) -> (usize, usize) {
+    let count = splits.iter().filter(|s| s.is_some()).count();
+    match count {
+        0 => {
+            children[0] = t;
+            (1, 0)
+        }
+        1 => {
+            let k = splits.iter().position(Option::is_some).expect("one");
+            let p = splits[k].expect("one");
+            let (v0, v1, v2) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            children[0] = [v0, p, v2];
+            children[1] = [p, v1, v2];
+            inner[0] = (p, v2);
+            (2, 1)
+        }
+        2 => {
+            // The unsplit edge is (k+2, k); splits on (k, k+1) = p and (k+1, k+2) = q.
+            let free = splits.iter().position(Option::is_none).expect("one free");
+            let k = (free + 1) % 3;
+            let (v0, v1, v2) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let p = splits[k].expect("split");
+            let q = splits[(k + 1) % 3].expect("split");
+            children[0] = [p, v1, q];
+            inner[0] = (p, q);
+            if diagonal_from_first {
+                children[1] = [v0, p, v2];
+                children[2] = [p, q, v2];
+                inner[1] = (p, v2);
+            } else {
+                children[1] = [v0, p, q];
+                children[2] = [v0, q, v2];
+                inner[1] = (v0, q);
+            }
+            (3, 2)
+        }
+        _ => {
+            let [s0, s1, s2] = splits.map(|s| s.expect("three"));
+            let [v0, v1, v2] = t;
+            children[0] = [v0, s0, s2];
+            children[1] = [s0, v1, s1];
+            children[2] = [s2, s1, v2];
+            children[3] = [s0, s1, s2];
+            inner[0] = (s0, s1);
+            inner[1] = (s1, s2);
+            inner[2] = (s2, s0);
+            (4, 3)
+        }
+    }
+}
+
+/// Whether the template of `t` has an edge between `p` and `q`.
+fn edge_in_template(
+    t: [u32; 3],
+    splits: [Option<u32>; 3],
+    diagonal_from_first: bool,
+    p: u32,
+    q: u32,
+) -> bool {
+    let mut children = [[0u32; 3]; 4];
+    let count = template(
+        t,
+        splits,
+        diagonal_from_first,
+        &mut children,
+        &mut [(0, 0); 3],
+    )
+    .0;
+    children[..count].iter().any(|c| {
+        (0..3).any(|k| (c[k] == p && c[(k + 1) % 3] == q) || (c[k] == q && c[(k + 1) % 3] == p))
+    })
+}
+
+/// Checks the surface of `body`: every triangle's corners distinct and in range, every directed edge
+/// used once (an oriented 2-manifold with boundary), every undirected edge by at most two triangles
+/// in opposite directions, no orphan node, every node's fan a single disc or half-disc, no triangle of
+/// area below 1e-10 × its longest edge² (rest). Returns the first problem found.
+pub fn check_surface(body: &Body) -> Result<(), String> {
+    let s = &body.surface;
+    let n = s.position_in_world.len();
+    let mut directed: Vec<(u32, u32)> = Vec::with_capacity(3 * s.triangles.len());
+    let mut used = vec![false; n];
+    for (i, t) in s.triangles.iter().enumerate() {
+        if t.iter().any(|&v| v as usize >= n) {
+            return Err(format!("triangle {i} has a corner out of range: {t:?}"));
+        }
+        if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
+            return Err(format!("triangle {i} repeats a corner: {t:?}"));
+        }
+        let [a, b, c] = t.map(|v| s.homologue_in_body[v as usize]);
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        let longest = (b - a)
+            .norm_squared()
+            .max((c - b).norm_squared())
+            .max((a - c).norm_squared());
+        if area < 1e-10 * longest {
+            return Err(format!("triangle {i} is degenerate: area {area:e}"));
+        }
+        for k in 0..3 {
+            used[t[k] as usize] = true;
+            directed.push((t[k], t[(k + 1) % 3]));
+        }
+    }
+    if let Some(v) = used.iter().position(|u| !u) {
+        return Err(format!("node {v} is in no triangle"));
+    }
+    directed.sort_unstable();
+    for w in directed.windows(2) {
+        if w[0] == w[1] {
+            return Err(format!("directed edge {:?} is used twice", w[0]));
+        }
+    }
+    // Each node's fan: the directed edges out of it form chains; a manifold vertex has one chain
+    // (a closed cycle or an open path).
+    let mut out_of: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
+    for t in &s.triangles {
+        for k in 0..3 {
+            // Around node t[k]: the triangle goes from t[k+1] to t[k+2].
+            out_of[t[k] as usize].push((t[(k + 1) % 3], t[(k + 2) % 3]));
+        }
+    }
+    for (v, fan) in out_of.iter().enumerate() {
+        // Count chain starts: a "from" that is no one's "to".
+        let starts = fan
+            .iter()
+            .filter(|(from, _)| !fan.iter().any(|(_, to)| to == from))
+            .count();
+        // Walk from a start (or anywhere for a cycle) and count the triangles reached.
+        let first = fan
+            .iter()
+            .find(|(from, _)| !fan.iter().any(|(_, to)| to == from))
+            .or(fan.first())
+            .copied();
+        let mut reached = 0;
+        if let Some(mut current) = first {
+            reached = 1;
+            while reached < fan.len() {
+                match fan.iter().find(|(from, _)| *from == current.1) {
+                    Some(next) if *next != first.expect("set") => {
+                        current = *next;
+                        reached += 1;
+                    }
+                    _ => break,
+                }
+            }
+        }
+        if starts > 1 || reached != fan.len() {
+            return Err(format!(
+                "node {v} is not a manifold vertex ({} triangles, {starts} open chains)",
+                fan.len()
+            ));
+        }
+    }
+    // Edge springs: ends in range and distinct.
+    let e = &body.edges;
+    for k in 0..e.len() {
+        if e.a[k] as usize >= n || e.b[k] as usize >= n || e.a[k] == e.b[k] {
+            return Err(format!("spring {k} has bad ends ({}, {})", e.a[k], e.b[k]));
+        }
+    }
+    if count_boundary_edges(&s.triangles) != body.boundary_edges {
+        return Err(format!(
+            "boundary edge count {} differs from the mesh's {}",
+            body.boundary_edges,
+            count_boundary_edges(&s.triangles)
+        ));
+    }
+    Ok(())
+}
