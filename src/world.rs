@@ -604,7 +604,13 @@ impl World {
                 }
                 clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {
-                    let inserted = refinement.refine_at_tools(body, &self.tools, self.tick + 1, dt);
+                    let inserted = refinement.refine_at_tools(
+                        body,
+                        &self.tools,
+                        cutting_blades,
+                        self.tick + 1,
+                        dt,
+                    );
                     if inserted > 0 {
                         counters.refinements += inserted;
                         solver.topology_changed(body, dt);

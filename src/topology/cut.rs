@@ -695,16 +695,29 @@ impl Cutter {
                 for along in QUALITY_FRACTIONS {
                     let point =
                         self.rest_of(body, u) * (1.0 - along) + self.rest_of(body, v) * along;
+                    // Only templates that keep the path through this triangle.
                     let q = [true, false]
-                        .map(|d| self.template_quality_with(body, a.corners, trial, d, point))
+                        .map(|d| {
+                            let keeps = a
+                                .path
+                                .is_none_or(|(p, q)| edge_in_template(a.corners, trial, d, p, q));
+                            if keeps {
+                                self.template_quality_with(body, a.corners, trial, d, point)
+                            } else {
+                                -1.0
+                            }
+                        })
                         .into_iter()
-                        .fold(0.0, f64::max);
+                        .fold(-1.0, f64::max);
                     if q > best.0 {
                         best = (q, candidate, along);
                     }
                 }
             }
-            let (_, k, along) = best;
+            let (q, k, along) = best;
+            if q <= quality {
+                continue;
+            }
             let (u, v) = (a.corners[k], a.corners[(k + 1) % 3]);
             if self.crossing_on(u, v).is_some() || self.crossings.len() == MAX_CROSSINGS {
                 continue;
@@ -902,6 +915,7 @@ impl Cutter {
         if self.path_edges.is_empty() {
             return (0, 0);
         }
+        self.fan.clear();
         let stamp = self.next_stamp();
         for &(p, q) in &self.path_edges {
             self.cut_stamp[p as usize] = stamp;

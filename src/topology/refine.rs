@@ -110,9 +110,20 @@ impl Refinement {
     /// Inserts at most one node per tool where the surface, at the end of the tick, cuts deepest
     /// into the tool (deeper than the tolerance), and lets the tool hold it; returns how many nodes
     /// were inserted.
-    pub fn refine_at_tools(&mut self, body: &mut Body, tools: &[Tool], tick: u64, dt: f64) -> u32 {
+    /// Tools whose bit is set in `skip` (bit k for tool k) are left out: blades cutting the body.
+    pub fn refine_at_tools(
+        &mut self,
+        body: &mut Body,
+        tools: &[Tool],
+        skip: u64,
+        tick: u64,
+        dt: f64,
+    ) -> u32 {
         let mut inserted = 0;
         for (tool_index, tool) in tools.iter().enumerate() {
+            if tool_index < 64 && skip & (1 << tool_index) != 0 {
+                continue;
+            }
             let Some((split, part)) = self
                 .cut_split(body, tool, tool_index as u32)
                 .or_else(|| self.sizing_split(body, tool, tool_index as u32))
