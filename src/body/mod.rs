@@ -336,13 +336,13 @@ impl Body {
             params: params.clone(),
             topology_version: 0,
             boundary_edges: crate::topology::cut::count_boundary_edges(&mesh.triangles),
+            // No room reserved yet: the mesh may grow, allocating (tests, tools); a world reserves.
             limits: Limits {
-                nodes: n,
-                triangles: mesh.triangles.len(),
-                edges: 0,
+                nodes: usize::MAX,
+                triangles: usize::MAX,
+                edges: usize::MAX,
             },
         };
-        body.limits.edges = body.edges.len();
         body.refresh_diagonals();
         body
     }
@@ -360,7 +360,11 @@ impl Body {
     /// Reserves the room of [`Body::room_nodes`] in every buffer (2 triangles and 3 edges per node)
     /// and sets [`Body::limits`] to it.
     pub fn reserve_room(&mut self) {
-        let room = self.room_nodes();
+        self.reserve_room_of(self.room_nodes());
+    }
+
+    /// Reserves room for `room` more nodes (2 triangles and 3 edges per node) and sets the limits.
+    pub fn reserve_room_of(&mut self, room: usize) {
         let n = self.node_count();
         let t = self.surface.triangles.len();
         let e = self.edges.len();
@@ -385,12 +389,14 @@ impl Body {
     /// Most nodes and triangles the body can have: its own, plus the subdivision and cutting pools.
     pub fn mesh_capacity(&self) -> (usize, usize) {
         let room = self.room_nodes();
-        (
-            self.limits.nodes.max(self.node_count() + room),
-            self.limits
-                .triangles
-                .max(self.surface.triangles.len() + 2 * room),
-        )
+        if self.limits.nodes == usize::MAX {
+            (
+                self.node_count() + room,
+                self.surface.triangles.len() + 2 * room,
+            )
+        } else {
+            (self.limits.nodes, self.limits.triangles)
+        }
     }
 
     /// Lumped rest area of every node: a third of each triangle around it, from the homologues (m²).

@@ -271,7 +271,7 @@ pub fn count_boundary_edges(triangles: &[[u32; 3]]) -> u32 {
 impl Cutter {
     /// The cutting state of `body` for `tools` tools, with scratch for its reserved room.
     pub fn new(body: &Body, settings: CuttingSettings, tools: usize) -> Self {
-        let capacity = body.limits.nodes.max(body.node_count());
+        let capacity = body.mesh_capacity().0.max(body.node_count());
         let bound = settings.min_angle_deg.min(0.5 * smallest_angle_deg(body));
         Self {
             settings,

@@ -236,7 +236,7 @@ impl InsertionLog {
 /// Reserves room in every per-node, per-edge and per-triangle array of `body` for [`POOL_NODES`]
 /// insertions, so that subdividing afterwards allocates nothing.
 pub fn reserve_for_subdivision(body: &mut Body) {
-    body.reserve_room();
+    body.reserve_room_of(body.room_nodes().max(POOL_NODES));
 }
 
 /// The edge between `a` and `b`, if any.

@@ -76,7 +76,8 @@ enum Split {
 impl Refinement {
     /// State for `body`, with room for [`POOL_NODES`] insertions.
     pub fn new(body: &Body, settings: SubdivisionSettings) -> Self {
-        let mut depth = Vec::with_capacity(body.limits.nodes.max(body.node_count() + POOL_NODES));
+        let mut depth =
+            Vec::with_capacity(body.mesh_capacity().0.max(body.node_count() + POOL_NODES));
         depth.resize(body.node_count(), 0);
         Self {
             settings,
