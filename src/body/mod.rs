@@ -114,6 +114,27 @@ pub struct Surface {
     pub damping_diagonal: Vec<f64>,
 }
 
+/// The state of a node being added to a surface (topology changes), SI units, world frame.
+#[derive(Clone, Copy, Debug)]
+pub struct NewNode {
+    /// m.
+    pub position_in_world: Vec3,
+    /// m.
+    pub next_position_in_world: Vec3,
+    /// m/s.
+    pub velocity_in_world: Vec3,
+    /// kg.
+    pub mass: f64,
+    /// m, body frame.
+    pub homologue_in_body: Vec3,
+    /// m.
+    pub homologue_in_world: Vec3,
+    /// N/m.
+    pub link_stiffness: f64,
+    /// N·s/m.
+    pub link_damping: f64,
+}
+
 /// Edge springs, structure of arrays. Index `e` is edge `e` in every array.
 #[derive(Clone, Debug, Default)]
 pub struct Edges {
@@ -185,6 +206,26 @@ impl Surface {
         self.tool_contact.reserve(additional);
         self.stiffness_diagonal.reserve(additional);
         self.damping_diagonal.reserve(additional);
+    }
+
+    /// Appends a node to every per-node array: no force, not in contact, air damping ν m, diagonals
+    /// to be refreshed by [`Body::refresh_diagonals`].
+    pub fn push_node(&mut self, node: NewNode, air_viscosity: f64) {
+        self.position_in_world.push(node.position_in_world);
+        self.next_position_in_world
+            .push(node.next_position_in_world);
+        self.velocity_in_world.push(node.velocity_in_world);
+        self.force_in_world.push(Vec3::zeros());
+        self.mass.push(node.mass);
+        self.inverse_mass.push(1.0 / node.mass);
+        self.air_damping.push(air_viscosity * node.mass);
+        self.homologue_in_body.push(node.homologue_in_body);
+        self.homologue_in_world.push(node.homologue_in_world);
+        self.link_stiffness.push(node.link_stiffness);
+        self.link_damping.push(node.link_damping);
+        self.tool_contact.push(ToolContact::default());
+        self.stiffness_diagonal.push(0.0);
+        self.damping_diagonal.push(0.0);
     }
 
     /// Removes the last node from every per-node array (its triangles and edges are the caller's).

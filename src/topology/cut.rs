@@ -24,10 +24,10 @@
 //! node). Everything works in fixed scratch sized when the cutter is built: a cut step allocates
 //! nothing, and refuses (and counts) a step the body's reserved room cannot take.
 
-use super::mass_fractions;
 use super::refine::min_angle_deg;
+use super::{find_edge, mass_fractions};
 use crate::Vec3;
-use crate::body::Body;
+use crate::body::{Body, NewNode};
 use crate::collision::tool::{Aabb, closest_point_on_triangle};
 
 /// How a body is cut (scene key `cutting`).
@@ -162,7 +162,7 @@ pub struct CutStep {
     pub changed: bool,
     /// Whether the step was refused (room or crossing bound).
     pub refused: bool,
-    /// Nodes of the body within the swept region's box.
+    /// Nodes of the body within the swept region's box (counted only for a body with a resistance).
     pub nodes_near: u32,
 }
 
@@ -342,10 +342,13 @@ impl Cutter {
         }
         bounds.inflate(self.tolerance(longest));
         let x = &body.surface.position_in_world;
-        step.nodes_near = x[..n]
-            .iter()
-            .filter(|p| bounds.overlaps_segment(p, p))
-            .count() as u32;
+        // Only a blade that pressed through a resistance asks whether it is still near the body.
+        if self.settings.resistance > 0.0 {
+            step.nodes_near = x[..n]
+                .iter()
+                .filter(|p| bounds.overlaps_segment(p, p))
+                .count() as u32;
+        }
         if area <= 1e-14 * size * size.max(1e-9) || size <= 0.0 {
             return step;
         }
@@ -457,7 +460,7 @@ impl Cutter {
                 }
             }
         }
-        self.collect_tips(body, tool);
+        self.collect_tips(tool);
         // 4. Open the surface along the path.
         let (copies, opened) = self.open(body);
         self.keep_pending(body);
@@ -583,8 +586,6 @@ impl Cutter {
                 if let Some((_, _, diag)) = path {
                     diagonal_from_first = diag;
                 }
-            } else if count == 1 {
-                // The path ends in this triangle; no edge opens here.
             }
             self.affected.push(Affected {
                 triangle: index as u32,
@@ -640,15 +641,7 @@ impl Cutter {
         diagonal_from_first: bool,
         trial: Vec3,
     ) -> f64 {
-        let mut children = [[0u32; 3]; 4];
-        let count = template(
-            t,
-            splits,
-            diagonal_from_first,
-            &mut children,
-            &mut [(0, 0); 3],
-        )
-        .0;
+        let (children, count) = template_children(t, splits, diagonal_from_first);
         let rest = |v: u32| {
             if v == u32::MAX - 1 {
                 trial
@@ -722,7 +715,7 @@ impl Cutter {
             if self.crossing_on(u, v).is_some() || self.crossings.len() == MAX_CROSSINGS {
                 continue;
             }
-            let Some(edge) = find_edge_index(body, u, v) else {
+            let Some(edge) = find_edge(body, u, v) else {
                 continue;
             };
             self.crossings.push(Crossing {
@@ -750,11 +743,6 @@ impl Cutter {
         let taken = [fractions[0] * s.mass[ia], fractions[1] * s.mass[ib]];
         let mass = taken[0] + taken[1];
         let weighted = |v: &[Vec3]| (v[ia] * taken[0] + v[ib] * taken[1]) / mass;
-        let position = weighted(&s.position_in_world);
-        let next = weighted(&s.next_position_in_world);
-        let velocity = weighted(&s.velocity_in_world);
-        let homologue = s.homologue_in_body[ia] * w[0] + s.homologue_in_body[ib] * w[1];
-        let homologue_world = s.homologue_in_world[ia] * w[0] + s.homologue_in_world[ib] * w[1];
         let k_link = s.link_stiffness[ia] * fractions[0] + s.link_stiffness[ib] * fractions[1];
         let c_link = s.link_damping[ia] * fractions[0] + s.link_damping[ib] * fractions[1];
         for (idx, i) in [ia, ib].into_iter().enumerate() {
@@ -764,16 +752,19 @@ impl Cutter {
             s.link_stiffness[i] *= 1.0 - fractions[idx];
             s.link_damping[i] *= 1.0 - fractions[idx];
         }
-        push_node(
-            body,
-            position,
-            next,
-            velocity,
-            mass,
-            homologue,
-            homologue_world,
-            k_link,
-            c_link,
+        s.push_node(
+            NewNode {
+                position_in_world: weighted(&s.position_in_world),
+                next_position_in_world: weighted(&s.next_position_in_world),
+                velocity_in_world: weighted(&s.velocity_in_world),
+                mass,
+                homologue_in_body: s.homologue_in_body[ia] * w[0] + s.homologue_in_body[ib] * w[1],
+                homologue_in_world: s.homologue_in_world[ia] * w[0]
+                    + s.homologue_in_world[ib] * w[1],
+                link_stiffness: k_link,
+                link_damping: c_link,
+            },
+            nu,
         );
         let p = (body.node_count() - 1) as u32;
         debug_assert_eq!(p, self.crossings[c].node);
@@ -853,8 +844,7 @@ impl Cutter {
         }
     }
 
-    fn collect_tips(&mut self, body: &Body, tool: usize) {
-        let _ = body;
+    fn collect_tips(&mut self, tool: usize) {
         let Some(tips) = self.tips.get_mut(tool) else {
             return;
         };
@@ -1087,15 +1077,18 @@ impl Cutter {
             given += mass;
             given_k += k;
             given_c += c;
-            let s = &body.surface;
-            let (x, xn, vel, hb, hw) = (
-                s.position_in_world[iv],
-                s.next_position_in_world[iv],
-                s.velocity_in_world[iv],
-                s.homologue_in_body[iv],
-                s.homologue_in_world[iv],
-            );
-            push_node(body, x, xn, vel, mass, hb, hw, k, c);
+            let s = &mut body.surface;
+            let copy_of_v = NewNode {
+                position_in_world: s.position_in_world[iv],
+                next_position_in_world: s.next_position_in_world[iv],
+                velocity_in_world: s.velocity_in_world[iv],
+                mass,
+                homologue_in_body: s.homologue_in_body[iv],
+                homologue_in_world: s.homologue_in_world[iv],
+                link_stiffness: k,
+                link_damping: c,
+            };
+            s.push_node(copy_of_v, nu);
             let copy = (body.node_count() - 1) as u32;
             self.copy_origin.push(v);
             self.copies.push(copy);
@@ -1125,44 +1118,6 @@ fn fan_range(fan: &[(u32, u32)], v: u32) -> std::ops::Range<usize> {
     let start = fan.partition_point(|&(w, _)| w < v);
     let end = fan.partition_point(|&(w, _)| w <= v);
     start..end
-}
-
-/// The edge between `a` and `b`, if any.
-fn find_edge_index(body: &Body, a: u32, b: u32) -> Option<usize> {
-    let e = &body.edges;
-    (0..e.len()).find(|&k| (e.a[k] == a && e.b[k] == b) || (e.a[k] == b && e.b[k] == a))
-}
-
-/// Appends a node with every per-node value given.
-#[allow(clippy::too_many_arguments)]
-fn push_node(
-    body: &mut Body,
-    position: Vec3,
-    next: Vec3,
-    velocity: Vec3,
-    mass: f64,
-    homologue: Vec3,
-    homologue_world: Vec3,
-    k_link: f64,
-    c_link: f64,
-) {
-    let nu = body.params.air_viscosity;
-    let s = &mut body.surface;
-    s.position_in_world.push(position);
-    s.next_position_in_world.push(next);
-    s.velocity_in_world.push(velocity);
-    s.force_in_world.push(Vec3::zeros());
-    s.mass.push(mass);
-    s.inverse_mass.push(1.0 / mass);
-    s.air_damping.push(nu * mass);
-    s.homologue_in_body.push(homologue);
-    s.homologue_in_world.push(homologue_world);
-    s.link_stiffness.push(k_link);
-    s.link_damping.push(c_link);
-    s.tool_contact
-        .push(crate::contact::tool::ToolContact::default());
-    s.stiffness_diagonal.push(0.0);
-    s.damping_diagonal.push(0.0);
 }
 
 /// The children of triangle `t` with split nodes `splits` on its edges (0,1), (1,2), (2,0), in its
@@ -1224,14 +1179,12 @@ fn template(
     }
 }
 
-/// Whether the template of `t` has an edge between `p` and `q`.
-fn edge_in_template(
+/// The children of [`template`] alone, and how many there are.
+fn template_children(
     t: [u32; 3],
     splits: [Option<u32>; 3],
     diagonal_from_first: bool,
-    p: u32,
-    q: u32,
-) -> bool {
+) -> ([[u32; 3]; 4], usize) {
     let mut children = [[0u32; 3]; 4];
     let count = template(
         t,
@@ -1241,6 +1194,18 @@ fn edge_in_template(
         &mut [(0, 0); 3],
     )
     .0;
+    (children, count)
+}
+
+/// Whether the template of `t` has an edge between `p` and `q`.
+fn edge_in_template(
+    t: [u32; 3],
+    splits: [Option<u32>; 3],
+    diagonal_from_first: bool,
+    p: u32,
+    q: u32,
+) -> bool {
+    let (children, count) = template_children(t, splits, diagonal_from_first);
     children[..count].iter().any(|c| {
         (0..3).any(|k| (c[k] == p && c[(k + 1) % 3] == q) || (c[k] == q && c[(k + 1) % 3] == p))
     })

@@ -30,7 +30,7 @@ pub mod refine;
 pub use cut::{Cutter, CuttingSettings};
 
 use crate::Vec3;
-use crate::body::Body;
+use crate::body::{Body, NewNode};
 
 /// Insertions a body can hold at once (its reserved pool).
 pub const POOL_NODES: usize = 256;
@@ -240,7 +240,7 @@ pub fn reserve_for_subdivision(body: &mut Body) {
 }
 
 /// The edge between `a` and `b`, if any.
-fn find_edge(body: &Body, a: u32, b: u32) -> Option<usize> {
+pub(crate) fn find_edge(body: &Body, a: u32, b: u32) -> Option<usize> {
     let e = &body.edges;
     (0..e.len()).find(|&k| (e.a[k] == a && e.b[k] == b) || (e.a[k] == b && e.b[k] == a))
 }
@@ -417,19 +417,19 @@ fn append_node(
             s.link_damping[c] *= 1.0 - share[idx];
         }
     }
-    s.position_in_world.push(moment / mass);
-    s.next_position_in_world.push(moment_next / mass);
-    s.velocity_in_world.push(momentum / mass);
-    s.force_in_world.push(Vec3::zeros());
-    s.mass.push(mass);
-    s.inverse_mass.push(1.0 / mass);
-    s.air_damping.push(nu * mass);
-    s.homologue_in_body.push(homologue);
-    s.homologue_in_world.push(homologue_world);
-    s.link_stiffness.push(k_link);
-    s.link_damping.push(c_link);
-    s.tool_contact
-        .push(crate::contact::tool::ToolContact::default());
+    s.push_node(
+        NewNode {
+            position_in_world: moment / mass,
+            next_position_in_world: moment_next / mass,
+            velocity_in_world: momentum / mass,
+            mass,
+            homologue_in_body: homologue,
+            homologue_in_world: homologue_world,
+            link_stiffness: k_link,
+            link_damping: c_link,
+        },
+        nu,
+    );
     (s.mass.len() - 1) as u32
 }
 
