@@ -449,7 +449,7 @@ impl World {
         self.body_contact = self
             .systems
             .body_contact
-            .then(|| BodyContactScratch::new(&self.bodies));
+            .then(|| BodyContactScratch::new(&self.bodies, 0, 0));
         let dt = self.params.dt;
         let world_integrator = self.params.integrator;
         self.refinements = self
@@ -550,7 +550,6 @@ impl World {
             *reaction = Vec3::zeros();
         }
         let systems = self.systems;
-        let mut topology_changed = false;
         for ((((body, solver), refinement), broad), cutter) in self
             .bodies
             .iter_mut()
@@ -614,7 +613,6 @@ impl World {
                     if inserted > 0 {
                         counters.refinements += inserted;
                         solver.topology_changed(body, dt);
-                        topology_changed = true;
                     }
                 }
                 for (tool_index, tool) in self.tools.iter().enumerate() {
@@ -719,7 +717,6 @@ impl World {
                         refinement.commit(body);
                     }
                     solver.topology_changed(body, dt);
-                    topology_changed = true;
                 }
             }
             if let Some(refinement) = refinement.as_mut() {
@@ -727,7 +724,6 @@ impl World {
                 if removed > 0 {
                     counters.coarsenings += removed;
                     solver.topology_changed(body, dt);
-                    topology_changed = true;
                 }
             }
         }
@@ -785,11 +781,6 @@ impl World {
         }
         for tool in &mut self.tools {
             clamp_feedback(tool);
-        }
-        if topology_changed && self.body_contact.is_some() {
-            // The bounding volume hierarchies follow the new triangles (this allocates; only
-            // scenes with two bodies or more have them).
-            self.body_contact = Some(BodyContactScratch::new(&self.bodies));
         }
         self.counters = counters;
         self.tick += 1;

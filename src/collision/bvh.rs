@@ -33,32 +33,65 @@ pub struct TriangleBvh {
     order: Vec<u32>,
     /// Swept box of each triangle, by triangle index, from the last refit.
     triangle_boxes: Vec<Aabb>,
+    centroids: Vec<Vec3>,
     stack: Vec<(u32, u32)>,
+    built_version: u64,
 }
 
 impl TriangleBvh {
     /// Builds the hierarchy for `triangles` at `positions`.
     pub fn build(triangles: &[[u32; 3]], positions: &[Vec3]) -> Self {
-        let centroids: Vec<Vec3> = triangles
-            .iter()
-            .map(|t| {
-                (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize])
-                    / 3.0
-            })
-            .collect();
-        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 2);
-        if !triangles.is_empty() {
-            build_node(&mut nodes, &mut order, &centroids, 0, triangles.len());
-        }
-        let mut bvh = Self {
-            nodes,
-            order,
-            triangle_boxes: vec![Aabb::empty(); triangles.len()],
-            stack: Vec::with_capacity(256),
-        };
-        bvh.refit(triangles, positions, positions, 0.0);
+        let mut bvh = Self::with_capacity(triangles.len());
+        bvh.rebuild(triangles, positions);
         bvh
+    }
+
+    /// An empty hierarchy with room for `triangles` triangles, so that [`TriangleBvh::rebuild`]
+    /// allocates nothing for a mesh of up to that many.
+    pub fn with_capacity(triangles: usize) -> Self {
+        Self {
+            nodes: Vec::with_capacity(2 * triangles / LEAF_SIZE + 2),
+            order: Vec::with_capacity(triangles),
+            triangle_boxes: Vec::with_capacity(triangles),
+            centroids: Vec::with_capacity(triangles),
+            stack: Vec::with_capacity(256),
+            built_version: 0,
+        }
+    }
+
+    /// Builds the hierarchy again for `triangles` at `positions` (after a topology change), in place:
+    /// the same tree [`TriangleBvh::build`] gives, allocation-free within the capacity.
+    pub fn rebuild(&mut self, triangles: &[[u32; 3]], positions: &[Vec3]) {
+        self.centroids.clear();
+        self.centroids.extend(triangles.iter().map(|t| {
+            (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0
+        }));
+        self.order.clear();
+        self.order.extend(0..triangles.len() as u32);
+        self.nodes.clear();
+        if !triangles.is_empty() {
+            build_node(
+                &mut self.nodes,
+                &mut self.order,
+                &self.centroids,
+                0,
+                triangles.len(),
+            );
+        }
+        self.triangle_boxes.clear();
+        self.triangle_boxes.resize(triangles.len(), Aabb::empty());
+        self.refit(triangles, positions, positions, 0.0);
+    }
+
+    /// Whether the hierarchy was built for this topology (`version` is the body's topology version,
+    /// `triangles` its triangle count).
+    pub fn is_built_for(&self, version: u64, triangles: usize) -> bool {
+        self.built_version == version && self.order.len() == triangles
+    }
+
+    /// Records the topology version the hierarchy was built for.
+    pub fn set_built_version(&mut self, version: u64) {
+        self.built_version = version;
     }
 
     /// Refits every box to the triangles swept from `start` to `end` positions, grown by `margin`.

@@ -50,13 +50,26 @@ pub struct BodyContactScratch {
 }
 
 impl BodyContactScratch {
-    /// Builds the hierarchies of every body.
-    pub fn new(bodies: &[Body]) -> Self {
+    /// Builds the hierarchies of every body, with room for each body's triangle capacity, and empty
+    /// hierarchies with room for `spare_triangles` triangles for `spare` bodies yet to come (pieces of
+    /// a transection).
+    pub fn new(bodies: &[Body], spare: usize, spare_triangles: usize) -> Self {
+        let mut bvhs: Vec<TriangleBvh> = bodies
+            .iter()
+            .map(|b| {
+                let mut bvh = TriangleBvh::with_capacity(b.mesh_capacity().1);
+                bvh.rebuild(&b.surface.triangles, &b.surface.position_in_world);
+                bvh.set_built_version(b.topology_version);
+                bvh
+            })
+            .collect();
+        bvhs.extend((0..spare).map(|_| {
+            let mut bvh = TriangleBvh::with_capacity(spare_triangles);
+            bvh.set_built_version(u64::MAX);
+            bvh
+        }));
         Self {
-            bvhs: bodies
-                .iter()
-                .map(|b| TriangleBvh::build(&b.surface.triangles, &b.surface.position_in_world))
-                .collect(),
+            bvhs,
             pairs: Vec::with_capacity(PAIR_CAPACITY),
             settings: CcdSettings::default(),
         }
@@ -165,6 +178,12 @@ pub fn resolve_body_collisions(
         let freeze = round == ROUNDS;
         for (b, bvh) in bodies.iter().zip(scratch.bvhs.iter_mut()) {
             let s = &b.surface;
+            // A topology change (subdivision, cut, transection) renumbers triangles: the hierarchy is
+            // built again, in place.
+            if round == 0 && !bvh.is_built_for(b.topology_version, s.triangles.len()) {
+                bvh.rebuild(&s.triangles, &s.position_in_world);
+                bvh.set_built_version(b.topology_version);
+            }
             bvh.refit(
                 &s.triangles,
                 &s.position_in_world,
