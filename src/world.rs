@@ -114,6 +114,10 @@ pub struct StepCounters {
     pub cuts: u32,
     /// Edges opened by cuts this step.
     pub opened_edges: u32,
+    /// Bodies a cut separated into several this step (each part past the first a new body).
+    pub transections: u32,
+    /// Transections left undone this step: no spare body left (the parts stay in one body).
+    pub transections_refused: u32,
 }
 
 /// Everything simulated, and the step.
@@ -146,6 +150,24 @@ pub struct World {
     previous_force: Vec<f64>,
     /// Broad-phase scratch of the tool contact detection, per body.
     broad: Vec<BroadScratch>,
+    /// The scene body each body comes from (itself, or the body a transection cut it from).
+    origin: Vec<usize>,
+    /// Pieces each body's transections have named so far (the k of `<name>.<k>`).
+    pieces_named: Vec<u32>,
+    /// Bodies reserved up front for the pieces of transections, with their solvers and scratch.
+    spares: Vec<Option<Spare>>,
+}
+
+/// A body reserved for a piece of a transection: buffers sized like its origin's, its solver,
+/// refinement, cutting state and broad-phase scratch, so that a transection allocates nothing.
+#[derive(Clone, Debug)]
+struct Spare {
+    origin: usize,
+    body: Body,
+    solver: BodySolver,
+    refinement: Option<Refinement>,
+    cutter: Option<Cutter>,
+    broad: BroadScratch,
 }
 
 /// The integrator of one body with its scratch memory.
@@ -365,6 +387,9 @@ impl World {
             cutters: Vec::new(),
             previous_force: Vec::new(),
             broad: Vec::new(),
+            origin: Vec::new(),
+            pieces_named: Vec::new(),
+            spares: Vec::new(),
         };
         world.assemble();
         world
@@ -446,12 +471,19 @@ impl World {
                 body.reserve_room();
             }
         }
-        self.body_contact = self
-            .systems
-            .body_contact
-            .then(|| BodyContactScratch::new(&self.bodies, 0, 0));
         let dt = self.params.dt;
         let world_integrator = self.params.integrator;
+        let tool_count = self.tools.len();
+        self.build_spares(dt, world_integrator, tool_count);
+        let spare_triangles = self
+            .spares
+            .iter()
+            .flatten()
+            .map(|s| s.body.mesh_capacity().1)
+            .max()
+            .unwrap_or(0);
+        self.body_contact = (self.bodies.len() + self.spares.len() >= 2)
+            .then(|| BodyContactScratch::new(&self.bodies, self.spares.len(), spare_triangles));
         self.refinements = self
             .bodies
             .iter_mut()
@@ -461,7 +493,6 @@ impl World {
                     .map(|settings| Refinement::new(b, settings))
             })
             .collect();
-        let tool_count = self.tools.len();
         self.cutters = self
             .bodies
             .iter()
@@ -489,6 +520,16 @@ impl World {
                 }
             })
             .collect();
+        self.origin = (0..self.bodies.len()).collect();
+        self.pieces_named = vec![0; self.bodies.len()];
+        let room = self.spares.len();
+        self.bodies.reserve(room);
+        self.solvers.reserve(room);
+        self.refinements.reserve(room);
+        self.cutters.reserve(room);
+        self.broad.reserve(room);
+        self.origin.reserve(room);
+        self.pieces_named.reserve(room);
         let gravity = self.params.gravity;
         self.guards = self
             .bodies
@@ -505,6 +546,148 @@ impl World {
                 guard
             })
             .collect();
+        self.guards.reserve(room);
+    }
+
+    /// Reserves the spare bodies of the cutting bodies (`max_pieces` each, shaped like their origin).
+    fn build_spares(&mut self, dt: f64, world_integrator: Integrator, tool_count: usize) {
+        self.spares.clear();
+        if !self.systems.cutting {
+            return;
+        }
+        for (origin, body) in self.bodies.iter().enumerate() {
+            let Some(settings) = body.params.cutting else {
+                continue;
+            };
+            for _ in 0..settings.max_pieces {
+                let mut shell = body.clone();
+                shell.name = String::with_capacity(body.name.len() + 24);
+                // A piece cut off falls free, even from a body held in place.
+                shell.params.fixed = false;
+                shell.rigid.fixed = false;
+                shell.reserve_room();
+                let refinement = shell.params.subdivision.map(|s| Refinement::new(&shell, s));
+                let cutter = Some(Cutter::new(&shell, settings, tool_count));
+                let (nodes, triangles) = shell.mesh_capacity();
+                self.spares.push(Some(Spare {
+                    origin,
+                    solver: solver_for(&shell, world_integrator, dt),
+                    refinement,
+                    cutter,
+                    broad: BroadScratch {
+                        outcodes: Vec::with_capacity(nodes),
+                        nodes: Vec::with_capacity(nodes),
+                        triangles: Vec::with_capacity(triangles),
+                    },
+                    body: shell,
+                }));
+            }
+        }
+    }
+
+    /// Most bodies this world may hold: its own and the spares reserved for transections.
+    pub fn body_capacity(&self) -> usize {
+        self.bodies.len() + self.spares.iter().flatten().count()
+    }
+
+    /// Largest mesh (nodes, triangles) a body still to come from a transection may have.
+    pub fn spare_mesh_capacity(&self) -> (usize, usize) {
+        self.spares
+            .iter()
+            .flatten()
+            .map(|s| s.body.mesh_capacity())
+            .fold((0, 0), |(n, t), (a, b)| (n.max(a), t.max(b)))
+    }
+
+    /// Separates body `b` into bodies if its last cut cut it in parts (see
+    /// [`crate::topology::transect`]). Allocation-free: new bodies come from the spares.
+    fn transect(&mut self, b: usize, counters: &mut StepCounters) {
+        use crate::topology::transect::MAX_PARTS;
+        let dt = self.params.dt;
+        let tick = self.tick + 1;
+        let Some(cutter) = self.cutters[b].as_mut() else {
+            return;
+        };
+        let body = &mut self.bodies[b];
+        if !cutter
+            .transector
+            .fits(body.node_count(), body.surface.triangles.len())
+        {
+            return;
+        }
+        let parts = cutter.transector.find_parts(body);
+        if parts < 2 {
+            return;
+        }
+        let origin = self.origin[b];
+        let mut slots = [usize::MAX; MAX_PARTS];
+        let mut found = 0;
+        for (i, spare) in self.spares.iter().enumerate() {
+            if found + 1 >= parts.min(MAX_PARTS) {
+                break;
+            }
+            if spare.as_ref().is_some_and(|s| s.origin == origin) {
+                slots[found] = i;
+                found += 1;
+            }
+        }
+        if parts > MAX_PARTS || found + 1 < parts {
+            counters.transections_refused += 1;
+            return;
+        }
+        let mut taken: [Option<Spare>; MAX_PARTS] = Default::default();
+        for (t, &slot) in taken.iter_mut().zip(&slots[..found]) {
+            *t = self.spares[slot].take();
+        }
+        let mut refs: [Option<&mut Body>; MAX_PARTS] = Default::default();
+        for (r, t) in refs.iter_mut().zip(taken.iter_mut()) {
+            *r = t.as_mut().map(|s| &mut s.body);
+        }
+        let min_angle = cutter.quality_bound_deg;
+        let result = cutter
+            .transector
+            .separate(body, &mut refs[..found], min_angle);
+        cutter.transection_counts(&result);
+        cutter.renumbered();
+        self.solvers[b].topology_changed(body, dt);
+        if let Some(refinement) = self.refinements[b].as_mut() {
+            refinement.renumbered(body);
+        }
+        self.guards[b].rebase(body);
+        counters.transections += 1;
+        let energy_every_tick = self.guards[b].energy_every_tick;
+        let gravity = self.params.gravity;
+        for spare in taken.iter_mut() {
+            let Some(mut spare) = spare.take() else {
+                continue;
+            };
+            self.pieces_named[b] += 1;
+            {
+                use std::fmt::Write;
+                let parent_name = &self.bodies[b].name;
+                spare.body.name.clear();
+                let _ = write!(spare.body.name, "{}.{}", parent_name, self.pieces_named[b]);
+            }
+            spare.solver.topology_changed(&spare.body, dt);
+            if let Some(refinement) = spare.refinement.as_mut() {
+                refinement.renumbered(&spare.body);
+            }
+            if let Some(cutter) = spare.cutter.as_mut() {
+                cutter.restart();
+                cutter.changed_at = tick;
+            }
+            let mut guard = Guard::new(&spare.body, &gravity);
+            guard.energy_every_tick = energy_every_tick;
+            self.bodies.push(spare.body);
+            self.solvers.push(spare.solver);
+            self.refinements.push(spare.refinement);
+            self.cutters.push(spare.cutter);
+            self.broad.push(spare.broad);
+            self.guards.push(guard);
+            self.origin.push(spare.origin);
+            self.pieces_named.push(0);
+        }
+        self.systems.body_contact = self.bodies.len() >= 2 && self.body_contact.is_some();
     }
 
     /// The systems this world runs.
@@ -661,8 +844,10 @@ impl World {
             }
         }
         clock.enter(Stage::BodyContact);
-        if let Some(scratch) = self.body_contact.as_mut() {
-            counters.bodies = resolve_body_collisions(&mut self.bodies, scratch, dt);
+        if systems.body_contact
+            && let Some(scratch) = self.body_contact.as_mut()
+        {
+            counters.bodies = resolve_body_collisions(&mut self.bodies, &self.origin, scratch, dt);
         }
         clock.enter(Stage::Commit);
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {
@@ -709,6 +894,9 @@ impl World {
                         changed = true;
                         counters.opened_edges += step.opened;
                     }
+                    if step.opened > 0 {
+                        cutter.check_parts = true;
+                    }
                 }
                 if changed {
                     counters.cuts += 1;
@@ -724,6 +912,17 @@ impl World {
                 if removed > 0 {
                     counters.coarsenings += removed;
                     solver.topology_changed(body, dt);
+                }
+            }
+        }
+        // A cut that opened edges may have cut a body in parts: each becomes a body.
+        if systems.cutting {
+            for b in 0..self.bodies.len() {
+                if self.cutters[b]
+                    .as_mut()
+                    .is_some_and(|c| std::mem::take(&mut c.check_parts))
+                {
+                    self.transect(b, &mut counters);
                 }
             }
         }

@@ -167,9 +167,12 @@ fn test_primitive(
     true
 }
 
-/// Finds and answers collisions between the trajectories of different bodies.
+/// Finds and answers collisions between the trajectories of different bodies. Bodies with the same
+/// `group` (the pieces of one transected body, whose caps start where they were cut apart) are not
+/// tested against each other.
 pub fn resolve_body_collisions(
     bodies: &mut [Body],
+    group: &[usize],
     scratch: &mut BodyContactScratch,
     dt: f64,
 ) -> BodyContactCounters {
@@ -194,6 +197,9 @@ pub fn resolve_body_collisions(
         let mut answered = 0;
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
+                if group.get(i).is_some_and(|g| group.get(j) == Some(g)) {
+                    continue;
+                }
                 scratch.pairs.clear();
                 let (left, right) = scratch.bvhs.split_at_mut(j);
                 let complete = left[i].overlapping_pairs(&right[0], &mut scratch.pairs);

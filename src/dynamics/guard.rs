@@ -97,6 +97,15 @@ impl Guard {
         }
     }
 
+    /// Starts watching `body` again after its mesh and rigid component were rebuilt (a transection):
+    /// size, energy budget and last good rigid state from the body now; events kept.
+    pub fn rebase(&mut self, body: &Body) {
+        let fresh = Self::new(body, &self.gravity);
+        self.size = fresh.size;
+        self.budget = fresh.budget;
+        self.last_good_rigid = fresh.last_good_rigid;
+    }
+
     /// Adds work done on the body by tools or anything outside the model (J).
     pub fn add_work(&mut self, work: f64) {
         if work.is_finite() {

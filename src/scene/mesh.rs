@@ -541,6 +541,77 @@ pub fn icosphere(radius: f64, subdivisions: u32) -> SurfaceMesh {
     mesh
 }
 
+/// A capsule along x (a tube with rounded ends, such as a bowel loop or a Fallopian tube): a cylinder
+/// of `radius` and `length` between two hemispheres, `around` nodes on every ring (at least 6), rings
+/// about as far apart as the nodes on a ring. Every other ring is turned by half a step, so that the
+/// triangles are close to equilateral.
+pub fn capsule(radius: f64, length: f64, around: u32) -> SurfaceMesh {
+    let around = around.max(6) as usize;
+    let spacing = std::f64::consts::TAU * radius / around as f64;
+    let quarter = ((std::f64::consts::FRAC_PI_2 * radius / spacing).round() as usize).max(1);
+    let segments = ((length / spacing).round() as usize).max(1);
+    // Rings as (x, ring radius), from the −x pole to the +x one.
+    let mut rings: Vec<(f64, f64)> = Vec::new();
+    for q in 1..=quarter {
+        let theta = std::f64::consts::FRAC_PI_2 * q as f64 / quarter as f64;
+        rings.push((-0.5 * length - radius * theta.cos(), radius * theta.sin()));
+    }
+    for k in 1..=segments {
+        rings.push((-0.5 * length + length * k as f64 / segments as f64, radius));
+    }
+    for q in (1..quarter).rev() {
+        let theta = std::f64::consts::FRAC_PI_2 * q as f64 / quarter as f64;
+        rings.push((0.5 * length + radius * theta.cos(), radius * theta.sin()));
+    }
+    let mut positions = vec![Vec3::new(-0.5 * length - radius, 0.0, 0.0)];
+    for (i, &(x, r)) in rings.iter().enumerate() {
+        let turn = if i % 2 == 1 { 0.5 } else { 0.0 };
+        for j in 0..around {
+            let phi = std::f64::consts::TAU * (j as f64 + turn) / around as f64;
+            positions.push(Vec3::new(x, r * phi.cos(), r * phi.sin()));
+        }
+    }
+    positions.push(Vec3::new(0.5 * length + radius, 0.0, 0.0));
+    let last = (positions.len() - 1) as u32;
+    let ring = |i: usize, j: usize| (1 + i * around + j % around) as u32;
+    let mut triangles = Vec::new();
+    for j in 0..around {
+        triangles.push([0, ring(0, j + 1), ring(0, j)]);
+        triangles.push([last, ring(rings.len() - 1, j), ring(rings.len() - 1, j + 1)]);
+    }
+    for i in 0..rings.len() - 1 {
+        for j in 0..around {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j + 1),
+                ring(i + 1, j),
+            );
+            let length_of = |p: u32, q: u32| (positions[p as usize] - positions[q as usize]).norm();
+            if length_of(a, c) <= length_of(b, d) {
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            } else {
+                triangles.push([a, b, d]);
+                triangles.push([b, c, d]);
+            }
+        }
+    }
+    // Each triangle faces away from the axis.
+    for t in &mut triangles {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let centre = (a + b + c) / 3.0;
+        let on_axis = Vec3::new(centre.x.clamp(-0.5 * length, 0.5 * length), 0.0, 0.0);
+        if (b - a).cross(&(c - a)).dot(&(centre - on_axis)) < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    SurfaceMesh {
+        positions_in_body: positions,
+        triangles,
+    }
+}
+
 /// An axis-aligned box of the given full size, centred on the origin, each face split into
 /// `(subdivisions + 1)²` quads of two triangles.
 pub fn box_mesh(size: Vec3, subdivisions: u32) -> SurfaceMesh {
@@ -816,6 +887,16 @@ mod tests {
             m.validate().unwrap();
             assert!(m.signed_volume() > 0.0);
         }
+    }
+
+    #[test]
+    fn capsule_is_a_closed_outward_tube_of_the_right_volume() {
+        let (r, l) = (0.02, 0.12);
+        let mut m = capsule(r, l, 24);
+        m.validate().unwrap();
+        let exact = std::f64::consts::PI * r * r * l + 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
+        let v = m.signed_volume();
+        assert!(v > 0.95 * exact && v < exact, "volume {v} against {exact}");
     }
 
     #[test]

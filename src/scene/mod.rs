@@ -472,7 +472,18 @@ impl Ctx<'_> {
                 ));
             }
         };
+        let max_pieces = match &s.max_pieces {
+            None => d.max_pieces,
+            Some(v) if *v.get_ref() <= 64 => *v.get_ref() as usize,
+            Some(v) => {
+                return Err(self.error(
+                    v.span(),
+                    format!("`max_pieces` must be 0 to 64, found {}", v.get_ref()),
+                ));
+            }
+        };
         Ok(Some(crate::topology::CuttingSettings {
+            max_pieces,
             resistance: self.number(
                 s.resistance.as_ref(),
                 d.resistance,
@@ -748,12 +759,14 @@ impl Ctx<'_> {
             m.ellipsoid.is_some(),
             m.box_.is_some(),
             m.obj.is_some(),
+            m.capsule.is_some(),
         ];
         if given.iter().filter(|g| **g).count() != 1 {
             return Err(self.error(
                 section.span(),
                 "`mesh` must have exactly one of `icosphere = { radius, subdivisions }`, \
-                 `ellipsoid = { radii, subdivisions }`, `box = { size, subdivisions }` or `obj = \"path.obj\"`"
+                 `ellipsoid = { radii, subdivisions }`, `box = { size, subdivisions }`, `capsule = { radius, length, around }` or \
+                 `obj = \"path.obj\"`"
                     .to_string(),
             ));
         }
@@ -848,6 +861,38 @@ impl Ctx<'_> {
             (
                 mesh::box_mesh_per_axis(size, subdivisions),
                 format!("box size={:?} s={subdivisions:?}", size.as_slice()),
+            )
+        } else if let Some(cap) = &m.capsule {
+            let c = cap.get_ref();
+            let radius = self.number(Some(&c.radius), 0.0, "radius", Rule::Positive)?;
+            let length = self.number(Some(&c.length), 0.0, "length", Rule::Positive)?;
+            let around = match &c.around {
+                None => 24,
+                Some(v) if (6..=256).contains(v.get_ref()) => *v.get_ref(),
+                Some(v) => {
+                    return Err(self.error(
+                        v.span(),
+                        format!("`around` must be 6 to 256, found {}", v.get_ref()),
+                    ));
+                }
+            };
+            // Rings about one node spacing apart: bound the count before building.
+            let spacing = std::f64::consts::TAU * radius / around as f64;
+            let rings =
+                (length / spacing).ceil() + (std::f64::consts::PI * radius / spacing).ceil() + 2.0;
+            if rings.is_nan() || rings * around as f64 > MAX_SCENE_VERTICES as f64 {
+                return Err(self.error(
+                    cap.span(),
+                    format!(
+                        "the capsule would have about {} vertices, more than a scene may have",
+                        rings * around as f64
+                    ),
+                ));
+            }
+            budget((rings as usize) * around as usize)?;
+            (
+                mesh::capsule(radius, length, around),
+                format!("capsule r={radius} l={length} around={around}"),
             )
         } else {
             let obj = m.obj.as_ref().expect("one mesh kind was given");

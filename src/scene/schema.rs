@@ -57,6 +57,7 @@ pub(super) struct CuttingSection {
     pub prestress: Option<Spanned<f64>>,
     pub max_nodes: Option<Spanned<u32>>,
     pub tolerance: Option<Spanned<f64>>,
+    pub max_pieces: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]
@@ -79,7 +80,16 @@ pub(super) struct MeshSection {
     #[serde(rename = "box")]
     pub box_: Option<Spanned<BoxMeshSection>>,
     pub obj: Option<Spanned<String>>,
+    pub capsule: Option<Spanned<CapsuleMeshSection>>,
     pub scale: Option<Spanned<ScaleValue>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CapsuleMeshSection {
+    pub radius: Spanned<f64>,
+    pub length: Spanned<f64>,
+    pub around: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]

@@ -25,6 +25,7 @@
 //! nothing, and refuses (and counts) a step the body's reserved room cannot take.
 
 use super::refine::min_angle_deg;
+use super::transect::Transector;
 use super::{find_edge, mass_fractions};
 use crate::Vec3;
 use crate::body::{Body, NewNode};
@@ -47,6 +48,9 @@ pub struct CuttingSettings {
     /// Least distance within which a node counts as on the blade's path (m); the tolerance is the
     /// larger of this and a quarter of the local edge length.
     pub tolerance: f64,
+    /// New bodies the transections of this body (and of its pieces) may create in all: the spare
+    /// bodies a world reserves up front. A cut that would need more leaves the parts in one body.
+    pub max_pieces: usize,
 }
 
 impl Default for CuttingSettings {
@@ -57,6 +61,7 @@ impl Default for CuttingSettings {
             prestress: 0.0,
             max_nodes: 2048,
             tolerance: 5e-4,
+            max_pieces: 4,
         }
     }
 }
@@ -76,6 +81,14 @@ pub struct CutCounters {
     pub refused: u64,
     /// Triangles created below the quality bound (none expected; counted, never hidden).
     pub quality_misses: u64,
+    /// Transections of this body (it separated into bodies).
+    pub transections: u64,
+    /// Caps closing the openings of transections.
+    pub caps: u64,
+    /// Openings a transection left open (no room, or not a simple loop).
+    pub caps_refused: u64,
+    /// Cap triangles below the quality bound.
+    pub cap_quality_misses: u64,
 }
 
 /// Most edges one cut step may cross (a bound on the tick's cost).
@@ -177,6 +190,8 @@ pub struct Cutter {
     pub counters: CutCounters,
     /// Smallest angle among the triangles the cuts created (degrees; 180 when none).
     pub smallest_created_angle_deg: f64,
+    /// Smallest angle of a cap triangle (degrees; 180 when none).
+    pub smallest_cap_angle_deg: f64,
     /// Tick at whose end the mesh last changed by a cut (0: never).
     pub changed_at: u64,
     /// Longest rest edge of the mesh (m): cuts only make shorter ones.
@@ -198,6 +213,10 @@ pub struct Cutter {
     /// Path edges not opened yet (a slit of one edge cannot open): kept for the next steps.
     pending: Vec<(u32, u32)>,
     fan: Vec<(u32, u32)>,
+    /// Scratch of the transection (parts, caps), with marks on this step's path.
+    pub transector: Transector,
+    /// Set when a cut step opened edges: the world then looks for parts.
+    pub check_parts: bool,
     copies: Vec<u32>,
 }
 
@@ -278,6 +297,7 @@ impl Cutter {
             quality_bound_deg: bound,
             counters: CutCounters::default(),
             smallest_created_angle_deg: 180.0,
+            smallest_cap_angle_deg: 180.0,
             changed_at: 0,
             longest: body.edges.rest_length.iter().fold(0.0f64, |m, &l| m.max(l))
                 / (1.0 - settings.prestress),
@@ -295,7 +315,40 @@ impl Cutter {
             pending: Vec::with_capacity(4 * MAX_CROSSINGS),
             fan: Vec::with_capacity(16 * MAX_CROSSINGS),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
+            transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
+            check_parts: false,
         }
+    }
+
+    /// Adds a transection's figures to the counters.
+    pub fn transection_counts(&mut self, t: &crate::topology::transect::Transection) {
+        if t.parts < 2 {
+            return;
+        }
+        self.counters.transections += 1;
+        self.counters.caps += t.caps as u64;
+        self.counters.caps_refused += t.caps_refused as u64;
+        self.counters.cap_quality_misses += t.cap_quality_misses as u64;
+        self.smallest_cap_angle_deg = self.smallest_cap_angle_deg.min(t.smallest_cap_angle_deg);
+    }
+
+    /// Follows a renumbering of the body's nodes (a transection): tips and pending path edges are
+    /// forgotten. Allocation-free.
+    pub fn renumbered(&mut self) {
+        for tips in &mut self.tips {
+            tips.clear();
+        }
+        self.pending.clear();
+        self.transector.clear_marks();
+    }
+
+    /// Starts afresh on a new piece of a body: no tips, no counts, blades not through.
+    pub fn restart(&mut self) {
+        self.renumbered();
+        self.counters = CutCounters::default();
+        self.smallest_created_angle_deg = 180.0;
+        self.through.fill(false);
+        self.away.fill(0);
     }
 
     fn next_stamp(&mut self) -> u32 {
@@ -449,9 +502,6 @@ impl Cutter {
         // 3. Path edges, and tips for the next step.
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
-        if let Some(tips) = self.tips.get_mut(tool) {
-            tips.clear();
-        }
         for i in 0..self.affected.len() {
             let a = self.affected[i];
             if let Some(pair) = a.path {
@@ -464,6 +514,15 @@ impl Cutter {
         // 4. Open the surface along the path.
         let (copies, opened) = self.open(body);
         self.keep_pending(body);
+        self.transector.clear_marks();
+        for i in 0..self.path_edges.len() {
+            let (p, q) = self.path_edges[i];
+            self.transector.mark(p);
+            self.transector.mark(q);
+        }
+        for i in 0..self.copies.len() {
+            self.transector.mark(self.copies[i]);
+        }
         step.copies = copies;
         step.opened = opened;
         step.changed = step.splits > 0 || copies > 0 || opened > 0;
@@ -848,6 +907,11 @@ impl Cutter {
         let Some(tips) = self.tips.get_mut(tool) else {
             return;
         };
+        // The tips this blade left before: a blade may have several fronts (the near and far side
+        // of a tube), each crossing edges on ticks of its own; a tip the path went on from this
+        // step is used up.
+        let before = tips.clone();
+        tips.clear();
         for a in &self.affected {
             if a.path.is_some() {
                 continue;
@@ -857,6 +921,15 @@ impl Cutter {
                 if c.on_path {
                     tips.push(c.node);
                 }
+            }
+        }
+        for &v in &before.nodes[..before.len] {
+            let used = self
+                .affected
+                .iter()
+                .any(|a| a.path.is_some_and(|(p, q)| p == v || q == v));
+            if !used {
+                tips.push(v);
             }
         }
         // A tip the path went through is no longer a tip.

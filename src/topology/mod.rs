@@ -26,6 +26,7 @@
 
 pub mod cut;
 pub mod refine;
+pub mod transect;
 
 pub use cut::{Cutter, CuttingSettings};
 

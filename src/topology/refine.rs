@@ -98,6 +98,15 @@ impl Refinement {
         self.depth.resize(body.node_count(), 0);
     }
 
+    /// Starts again on a body whose nodes were renumbered (a transection): nothing to coarsen, every
+    /// node at depth 0, counters kept. Allocation-free within the reserved room.
+    pub fn renumbered(&mut self, body: &Body) {
+        self.log.clear();
+        self.last_held.clear();
+        self.depth.clear();
+        self.depth.resize(body.node_count(), 0);
+    }
+
     /// Nodes inserted and not yet removed.
     pub fn inserted_nodes(&self) -> usize {
         self.log.len()

@@ -1,0 +1,813 @@
+//! Transection: when a cut separates a body's surface into parts, each part becomes a body of its own.
+//!
+//! After a cut step that opened edges, the parts are found by a union–find over the edge springs
+//! (nodes joined by a spring are in the same part). When there are two or more:
+//!
+//! 1. **Caps.** Every boundary loop through a node of this step's path is closed by a cap in its rest
+//!    shape: rings of nodes scaled towards the loop's centre (each ring resampled from the loop by arc
+//!    length, about one edge length apart, node counts falling with the radius, as in a hexagonal
+//!    disc), joined by strips that follow the arc-length fraction around the loop, and a fan at the
+//!    centre. Cap triangles traverse the rim edges the other way round from the surface's triangles, so
+//!    the closed part is oriented outwards as the surface was.
+//! 2. **Masses.** A part keeps its surface mass: the cap nodes take their share by rest area
+//!    (`M · a_cap / (A + Σ a_cap)`) and every other node of the part gives the same fraction of its
+//!    mass; cap nodes move with the part's centre-of-mass velocity. Mass and linear momentum are
+//!    conserved to rounding, and kinetic energy does not grow (the cap's momentum is the mean's).
+//! 3. **Bodies.** The part with the largest surface mass stays in the body (its nodes renumbered in
+//!    order); every other part moves into a spare body reserved up front.
+//! 4. **Rigid components.** Each part gets a share of the rigid mass in proportion to its surface mass,
+//!    its frame's origin at the centroid of the solid its closed rest surface encloses, the inertia of
+//!    that solid, the parent's orientation; homologues are re-expressed in the new frame (their world
+//!    positions do not move). Velocities follow the parent's rigid motion at the new origins, shifted
+//!    so that the linear momentum is the parent's exactly; the angular momentum left over from the
+//!    parent's is shared by mass.
+//!
+//! Scratch is sized with the body's reserved room: a transection allocates nothing. Its cost is that of
+//! a pass over the body's edges and a sort of its half-edges (only on ticks where a cut opened edges,
+//! and the sort only when the surface did fall apart).
+
+use crate::Vec3;
+use crate::body::{Body, NewNode, RigidComponent};
+use nalgebra::Matrix3;
+
+/// Most parts one transection may produce.
+pub const MAX_PARTS: usize = 8;
+
+/// Nodes of cap ring may not be fewer than this (a smaller ring is the centre).
+const MIN_RING: usize = 3;
+
+const NONE: u32 = u32::MAX;
+
+/// What a transection did (see [`Transector::separate`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Transection {
+    /// Parts found (1: the surface holds together).
+    pub parts: usize,
+    /// The part the body keeps.
+    pub kept: usize,
+    /// Caps built.
+    pub caps: u32,
+    /// Loops left open (no room, or not a simple loop).
+    pub caps_refused: u32,
+    /// Cap triangles whose smallest angle is below `min_angle` (degrees).
+    pub cap_quality_misses: u32,
+    /// Smallest angle of a cap triangle (degrees; 180 when none).
+    pub smallest_cap_angle_deg: f64,
+}
+
+/// Fixed scratch of the transection of one body.
+#[derive(Clone, Debug)]
+pub struct Transector {
+    parent: Vec<u32>,
+    /// Part of every node.
+    pub part: Vec<u32>,
+    new_index: Vec<u32>,
+    marked_list: Vec<u32>,
+    half_edges: Vec<(u64, u32, u32)>,
+    next: Vec<u32>,
+    visited: Vec<bool>,
+    loop_nodes: Vec<u32>,
+    arc: Vec<f64>,
+    ring: Vec<u32>,
+    ring_next: Vec<u32>,
+    cap_area: Vec<f64>,
+    cap_nodes_from: usize,
+    parts: usize,
+    part_mass: [f64; MAX_PARTS],
+}
+
+/// Union–find root with path halving.
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let grand = parent[parent[i as usize] as usize];
+        parent[i as usize] = grand;
+        i = grand;
+    }
+    i
+}
+
+fn triangle_area(a: &Vec3, b: &Vec3, c: &Vec3) -> f64 {
+    0.5 * (b - a).cross(&(c - a)).norm()
+}
+
+/// Volume, first moment and second moment (∫ x xᵀ) of the solid a closed oriented surface encloses
+/// (divergence theorem over tetrahedra from the origin).
+pub fn solid_moments(positions: &[Vec3], triangles: &[[u32; 3]]) -> (f64, Vec3, Matrix3<f64>) {
+    let mut volume = 0.0;
+    let mut first = Vec3::zeros();
+    let mut second = Matrix3::zeros();
+    for t in triangles {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let det = a.dot(&b.cross(&c));
+        volume += det / 6.0;
+        let s = a + b + c;
+        first += s * (det / 24.0);
+        second += (a * a.transpose() + b * b.transpose() + c * c.transpose() + s * s.transpose())
+            * (det / 120.0);
+    }
+    (volume, first, second)
+}
+
+/// Inertia tensor of a uniform solid of `mass` with the given moments, about the point `about`.
+fn inertia_about(
+    volume: f64,
+    first: &Vec3,
+    second: &Matrix3<f64>,
+    mass: f64,
+    about: &Vec3,
+) -> Matrix3<f64> {
+    let density = mass / volume;
+    // ∫ (x − c)(x − c)ᵀ = S − c mᵀ − m cᵀ + V c cᵀ.
+    let shifted = (second - about * first.transpose() - first * about.transpose()
+        + about * about.transpose() * volume)
+        * density;
+    Matrix3::identity() * shifted.trace() - shifted
+}
+
+impl Transector {
+    /// Scratch for a body of at most `nodes` nodes and `triangles` triangles.
+    pub fn with_capacity(nodes: usize, triangles: usize) -> Self {
+        Self {
+            parent: Vec::with_capacity(nodes),
+            part: Vec::with_capacity(nodes),
+            new_index: Vec::with_capacity(nodes),
+            marked_list: Vec::with_capacity(nodes),
+            half_edges: Vec::with_capacity(3 * triangles),
+            next: Vec::with_capacity(nodes),
+            visited: Vec::with_capacity(nodes),
+            loop_nodes: Vec::with_capacity(nodes),
+            arc: Vec::with_capacity(nodes + 1),
+            ring: Vec::with_capacity(nodes),
+            ring_next: Vec::with_capacity(nodes),
+            cap_area: Vec::with_capacity(nodes),
+            cap_nodes_from: 0,
+            parts: 0,
+            part_mass: [0.0; MAX_PARTS],
+        }
+    }
+
+    /// Whether the scratch can serve a body of `nodes` nodes.
+    pub fn fits(&self, nodes: usize, triangles: usize) -> bool {
+        nodes <= self.parent.capacity() && 3 * triangles <= self.half_edges.capacity()
+    }
+
+    /// Marks a node of the cut path of this step (caps close the loops through marked nodes); marks
+    /// past the scratch's room are dropped.
+    pub fn mark(&mut self, node: u32) {
+        if self.marked_list.len() < self.marked_list.capacity() {
+            self.marked_list.push(node);
+        }
+    }
+
+    /// Forgets the marks.
+    pub fn clear_marks(&mut self) {
+        self.marked_list.clear();
+    }
+
+    /// Finds the parts of the surface: nodes joined by edge springs. Returns how many (each node's
+    /// part in [`Transector::part`], numbered in order of their first node).
+    pub fn find_parts(&mut self, body: &Body) -> usize {
+        let n = body.node_count();
+        self.parent.clear();
+        self.parent.extend(0..n as u32);
+        let e = &body.edges;
+        for k in 0..e.len() {
+            let (ra, rb) = (
+                find(&mut self.parent, e.a[k]),
+                find(&mut self.parent, e.b[k]),
+            );
+            if ra != rb {
+                let (lo, hi) = (ra.min(rb), ra.max(rb));
+                self.parent[hi as usize] = lo;
+            }
+        }
+        self.part.clear();
+        self.part.resize(n, NONE);
+        let mut parts = 0u32;
+        for v in 0..n as u32 {
+            let r = find(&mut self.parent, v);
+            if self.part[r as usize] == NONE {
+                self.part[r as usize] = parts;
+                parts += 1;
+            }
+            self.part[v as usize] = self.part[r as usize];
+        }
+        self.parts = parts as usize;
+        self.parts
+    }
+
+    /// Boundary half-edges of the surface: `next[a] = b` for every triangle edge a→b that no triangle
+    /// traverses b→a. Returns the number of boundary edges.
+    fn boundary_next(&mut self, body: &Body) -> u32 {
+        let n = body.node_count();
+        self.half_edges.clear();
+        for t in &body.surface.triangles {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+                self.half_edges.push((key, a, b));
+            }
+        }
+        self.half_edges.sort_unstable();
+        self.next.clear();
+        self.next.resize(n, NONE);
+        let mut count = 0;
+        let mut k = 0;
+        while k < self.half_edges.len() {
+            let mut j = k + 1;
+            while j < self.half_edges.len() && self.half_edges[j].0 == self.half_edges[k].0 {
+                j += 1;
+            }
+            if j - k == 1 {
+                let (_, a, b) = self.half_edges[k];
+                if self.next[a as usize] == NONE {
+                    self.next[a as usize] = b;
+                }
+                count += 1;
+            }
+            k = j;
+        }
+        count
+    }
+
+    #[allow(clippy::needless_range_loop)] // per-part arrays indexed together
+    /// Caps the open loops through marked nodes, splits the surface mass of each part between its
+    /// nodes and caps, and moves every part but the heaviest into `spares` (in part order; one spare
+    /// per part past the first). `min_angle` (degrees) is the quality bound counted for cap triangles.
+    /// Returns what was done; `parts` < 2 when nothing changed. The caller has checked that there are
+    /// enough spares.
+    pub fn separate(
+        &mut self,
+        body: &mut Body,
+        spares: &mut [Option<&mut Body>],
+        min_angle: f64,
+    ) -> Transection {
+        let mut result = Transection {
+            parts: self.parts,
+            smallest_cap_angle_deg: 180.0,
+            ..Transection::default()
+        };
+        if self.parts < 2
+            || self.parts > MAX_PARTS
+            || spares.iter().flatten().count() + 1 < self.parts
+        {
+            return result;
+        }
+        // Part masses and momenta before the caps.
+        let n0 = body.node_count();
+        let mut momentum = [Vec3::zeros(); MAX_PARTS];
+        self.part_mass = [0.0; MAX_PARTS];
+        for v in 0..n0 {
+            let p = self.part[v] as usize;
+            let m = body.surface.mass[v];
+            self.part_mass[p] += m;
+            momentum[p] += body.surface.velocity_in_world[v] * m;
+        }
+        // 1. Caps.
+        self.boundary_next(body);
+        self.visited.clear();
+        self.visited.resize(n0, false);
+        self.cap_nodes_from = n0;
+        self.cap_area.clear();
+        for i in 0..self.marked_list.len() {
+            let s = self.marked_list[i];
+            if (s as usize) >= n0 || self.visited[s as usize] || self.next[s as usize] == NONE {
+                continue;
+            }
+            // Walk the loop.
+            self.loop_nodes.clear();
+            let mut v = s;
+            let mut closed = false;
+            while self.loop_nodes.len() <= n0 {
+                self.loop_nodes.push(v);
+                self.visited[v as usize] = true;
+                v = self.next[v as usize];
+                if v == s {
+                    closed = true;
+                    break;
+                }
+                if v == NONE || self.visited[v as usize] {
+                    break;
+                }
+            }
+            if !closed || self.loop_nodes.len() < 3 {
+                result.caps_refused += 1;
+                continue;
+            }
+            if self.cap_loop(body, min_angle, &mut result) {
+                result.caps += 1;
+            } else {
+                result.caps_refused += 1;
+            }
+        }
+        // 2. Masses: cap nodes by rest area, the rest of each part scaled to make room.
+        let n1 = body.node_count();
+        let mut part_area = [0.0f64; MAX_PARTS];
+        let mut part_cap = [0.0f64; MAX_PARTS];
+        {
+            let h = &body.surface.homologue_in_body;
+            for t in &body.surface.triangles {
+                if (t[0] as usize) < n0 && (t[1] as usize) < n0 && (t[2] as usize) < n0 {
+                    part_area[self.part[t[0] as usize] as usize] +=
+                        triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
+                }
+            }
+        }
+        for c in n0..n1 {
+            part_cap[self.part[c] as usize] += self.cap_area[c - n0];
+        }
+        let mut velocity = [Vec3::zeros(); MAX_PARTS];
+        let mut keep_fraction = [1.0f64; MAX_PARTS];
+        for p in 0..self.parts {
+            velocity[p] = momentum[p] / self.part_mass[p];
+            let total = part_area[p] + part_cap[p];
+            if total > 0.0 {
+                keep_fraction[p] = part_area[p] / total;
+            }
+        }
+        {
+            let nu = body.params.air_viscosity;
+            let s = &mut body.surface;
+            for v in 0..n1 {
+                let p = self.part[v] as usize;
+                let m = if v < n0 {
+                    s.mass[v] * keep_fraction[p]
+                } else {
+                    self.part_mass[p] * self.cap_area[v - n0] / (part_area[p] + part_cap[p])
+                };
+                if v >= n0 {
+                    s.velocity_in_world[v] = velocity[p];
+                }
+                s.mass[v] = m;
+                s.inverse_mass[v] = 1.0 / m;
+                s.air_damping[v] = nu * m;
+            }
+        }
+        // 3. Parts into bodies: the heaviest stays.
+        let kept = (0..self.parts)
+            .max_by(|&a, &b| {
+                self.part_mass[a]
+                    .total_cmp(&self.part_mass[b])
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(0);
+        result.kept = kept;
+        let parent_rigid = body.rigid.clone();
+        let mut counts = [0u32; MAX_PARTS];
+        self.new_index.clear();
+        for v in 0..n1 {
+            let p = self.part[v] as usize;
+            self.new_index.push(counts[p]);
+            counts[p] += 1;
+        }
+        let mut slot_of = [usize::MAX; MAX_PARTS];
+        let mut next_slot = 0;
+        for (p, slot) in slot_of.iter_mut().enumerate().take(self.parts) {
+            if p != kept {
+                *slot = next_slot;
+                next_slot += 1;
+            }
+        }
+        for spare in spares.iter_mut().flatten() {
+            clear_mesh(spare);
+        }
+        for v in 0..n1 {
+            let p = self.part[v] as usize;
+            if p != kept
+                && let Some(piece) = slot(spares, slot_of[p])
+            {
+                copy_node(&body.surface, v, &mut piece.surface);
+            }
+        }
+        for t in &body.surface.triangles {
+            let p = self.part[t[0] as usize] as usize;
+            if p != kept
+                && let Some(piece) = slot(spares, slot_of[p])
+            {
+                piece
+                    .surface
+                    .triangles
+                    .push(t.map(|v| self.new_index[v as usize]));
+            }
+        }
+        for k in 0..body.edges.len() {
+            let e = &body.edges;
+            let p = self.part[e.a[k] as usize] as usize;
+            if p != kept
+                && let Some(piece) = slot(spares, slot_of[p])
+            {
+                piece.edges.push(
+                    self.new_index[e.a[k] as usize],
+                    self.new_index[e.b[k] as usize],
+                    e.rest_length[k],
+                    e.stiffness[k],
+                    e.damping[k],
+                );
+            }
+        }
+        self.compact(body, kept as u32);
+        // 4. Rigid components.
+        let mut origins = [Vec3::zeros(); MAX_PARTS];
+        let mut rigid_mass = [0.0f64; MAX_PARTS];
+        let surface_total: f64 = self.part_mass[..self.parts].iter().sum();
+        let mut weighted_origin = Vec3::zeros();
+        for p in 0..self.parts {
+            rigid_mass[p] = parent_rigid.mass * self.part_mass[p] / surface_total;
+        }
+        for p in 0..self.parts {
+            let piece: &mut Body = if p == kept {
+                body
+            } else if let Some(piece) = slot(spares, slot_of[p]) {
+                piece
+            } else {
+                continue;
+            };
+            origins[p] = rebase_rigid(piece, &parent_rigid, rigid_mass[p]);
+            weighted_origin += origins[p] * rigid_mass[p];
+        }
+        weighted_origin /= parent_rigid.mass;
+        let omega = parent_rigid.angular_velocity_in_world();
+        let rotation = parent_rigid.world_from_body;
+        let mut angular = Vec3::zeros();
+        for p in 0..self.parts {
+            let piece: &mut Body = if p == kept {
+                body
+            } else if let Some(piece) = slot(spares, slot_of[p]) {
+                piece
+            } else {
+                continue;
+            };
+            let r = &mut piece.rigid;
+            r.velocity_in_world = parent_rigid.velocity_in_world
+                + omega.cross(&(rotation * (origins[p] - weighted_origin)));
+            r.angular_momentum_in_world = r.inertia_in_world() * omega;
+            if r.fixed {
+                r.velocity_in_world = Vec3::zeros();
+                r.angular_momentum_in_world = Vec3::zeros();
+            }
+            angular += r.angular_momentum_in_world
+                + (r.position_in_world - parent_rigid.position_in_world)
+                    .cross(&(r.velocity_in_world * r.mass));
+        }
+        if !parent_rigid.fixed {
+            let left = parent_rigid.angular_momentum_in_world - angular;
+            for p in 0..self.parts {
+                let piece: &mut Body = if p == kept {
+                    body
+                } else if let Some(piece) = slot(spares, slot_of[p]) {
+                    piece
+                } else {
+                    continue;
+                };
+                if !piece.rigid.fixed {
+                    piece.rigid.angular_momentum_in_world +=
+                        left * (rigid_mass[p] / parent_rigid.mass);
+                }
+            }
+        }
+        // Boundary counts of every piece.
+        for p in 0..self.parts {
+            let piece: &mut Body = if p == kept {
+                body
+            } else if let Some(piece) = slot(spares, slot_of[p]) {
+                piece
+            } else {
+                continue;
+            };
+            piece.boundary_edges = self.boundary_next(piece);
+            piece.topology_version += 1;
+            piece.refresh_diagonals();
+        }
+        result
+    }
+
+    /// Keeps the nodes, triangles and edges of part `kept` in the body, renumbered in order.
+    fn compact(&mut self, body: &mut Body, kept: u32) {
+        let n = body.node_count();
+        let s = &mut body.surface;
+        let mut w = 0;
+        for v in 0..n {
+            if self.part[v] != kept {
+                continue;
+            }
+            if w != v {
+                s.position_in_world[w] = s.position_in_world[v];
+                s.next_position_in_world[w] = s.next_position_in_world[v];
+                s.velocity_in_world[w] = s.velocity_in_world[v];
+                s.force_in_world[w] = s.force_in_world[v];
+                s.mass[w] = s.mass[v];
+                s.inverse_mass[w] = s.inverse_mass[v];
+                s.air_damping[w] = s.air_damping[v];
+                s.homologue_in_body[w] = s.homologue_in_body[v];
+                s.homologue_in_world[w] = s.homologue_in_world[v];
+                s.link_stiffness[w] = s.link_stiffness[v];
+                s.link_damping[w] = s.link_damping[v];
+                s.tool_contact[w] = s.tool_contact[v];
+            }
+            w += 1;
+        }
+        while s.position_in_world.len() > w {
+            s.pop_node();
+        }
+        let mut wt = 0;
+        for i in 0..s.triangles.len() {
+            let t = s.triangles[i];
+            if self.part[t[0] as usize] == kept {
+                s.triangles[wt] = t.map(|v| self.new_index[v as usize]);
+                wt += 1;
+            }
+        }
+        s.triangles.truncate(wt);
+        let e = &mut body.edges;
+        let mut we = 0;
+        for k in 0..e.len() {
+            if self.part[e.a[k] as usize] == kept {
+                e.a[we] = self.new_index[e.a[k] as usize];
+                e.b[we] = self.new_index[e.b[k] as usize];
+                e.rest_length[we] = e.rest_length[k];
+                e.stiffness[we] = e.stiffness[k];
+                e.damping[we] = e.damping[k];
+                we += 1;
+            }
+        }
+        while e.len() > we {
+            e.pop();
+        }
+    }
+
+    /// Closes the loop in `loop_nodes` (boundary direction) with rings and a centre; false (and the
+    /// mesh unchanged) when the body has no room or the loop encloses no area.
+    fn cap_loop(&mut self, body: &mut Body, min_angle: f64, result: &mut Transection) -> bool {
+        let n = self.loop_nodes.len();
+        let h = &body.surface.homologue_in_body;
+        // Rest arc length and centre.
+        self.arc.clear();
+        self.arc.push(0.0);
+        let mut centre = Vec3::zeros();
+        let mut area_vector = Vec3::zeros();
+        for i in 0..n {
+            let (a, b) = (
+                h[self.loop_nodes[i] as usize],
+                h[self.loop_nodes[(i + 1) % n] as usize],
+            );
+            let last = self.arc[i];
+            self.arc.push(last + (b - a).norm());
+            centre += a;
+            area_vector += a.cross(&b);
+        }
+        centre /= n as f64;
+        let perimeter = self.arc[n];
+        if perimeter <= 0.0 || area_vector.norm() <= 1e-12 * perimeter * perimeter {
+            return false;
+        }
+        let spacing = perimeter / n as f64;
+        let radius = self
+            .loop_nodes
+            .iter()
+            .map(|&v| (h[v as usize] - centre).norm())
+            .sum::<f64>()
+            / n as f64;
+        let rings_total = ((radius / (spacing * 0.866)).round() as usize).max(1);
+        // Ring sizes (outer loop excluded): n (1 − k/K) nodes, at least MIN_RING.
+        let mut new_nodes = 1;
+        let mut new_triangles = 0;
+        let mut outer = n;
+        for k in 1..rings_total {
+            let count = ((n as f64) * (1.0 - k as f64 / rings_total as f64)).round() as usize;
+            if count < MIN_RING {
+                break;
+            }
+            new_nodes += count;
+            new_triangles += outer + count;
+            outer = count;
+        }
+        new_triangles += outer;
+        let new_edges = new_nodes + new_triangles;
+        if !body.has_room(new_nodes, new_triangles, new_edges)
+            || self.cap_area.len() + new_nodes > self.cap_area.capacity()
+            || body.node_count() + new_nodes > self.part.capacity()
+        {
+            return false;
+        }
+        let part = self.part[self.loop_nodes[0] as usize];
+        let (k_link, c_link) = (body.params.link_stiffness, body.params.link_damping);
+        let (k_edge, c_edge) = (body.params.surface_stiffness, body.params.surface_damping);
+        let nu = body.params.air_viscosity;
+        let centre_world = {
+            let x = &body.surface.position_in_world;
+            self.loop_nodes.iter().map(|&v| x[v as usize]).sum::<Vec3>() / n as f64
+        };
+        // Current ring: the loop itself.
+        self.ring.clear();
+        self.ring.extend_from_slice(&self.loop_nodes);
+        let mut ring_is_loop = true;
+        let first_triangle = body.surface.triangles.len();
+        for k in 1..=rings_total {
+            let scale = 1.0 - k as f64 / rings_total as f64;
+            let count = ((n as f64) * scale).round() as usize;
+            self.ring_next.clear();
+            if k < rings_total && count >= MIN_RING {
+                // Resample the loop at `count` equal arc lengths, scaled towards the centre.
+                let mut j = 0;
+                for l in 0..count {
+                    let target = perimeter * l as f64 / count as f64;
+                    while j + 1 < n && self.arc[j + 1] <= target {
+                        j += 1;
+                    }
+                    let u = ((target - self.arc[j]) / (self.arc[j + 1] - self.arc[j]).max(1e-300))
+                        .clamp(0.0, 1.0);
+                    let (a, b) = (
+                        self.loop_nodes[j] as usize,
+                        self.loop_nodes[(j + 1) % n] as usize,
+                    );
+                    let s = &body.surface;
+                    let rest = s.homologue_in_body[a].lerp(&s.homologue_in_body[b], u);
+                    let world = s.position_in_world[a].lerp(&s.position_in_world[b], u);
+                    let node = self.push_cap_node(
+                        body,
+                        centre + (rest - centre) * scale,
+                        centre_world + (world - centre_world) * scale,
+                        k_link,
+                        c_link,
+                        nu,
+                        part,
+                    );
+                    self.ring_next.push(node);
+                }
+                // Ring edges.
+                for l in 0..count {
+                    let (a, b) = (self.ring_next[l], self.ring_next[(l + 1) % count]);
+                    push_rest_edge(body, a, b, k_edge, c_edge);
+                }
+                // Strip between the current ring and the next.
+                let m = self.ring.len();
+                let (mut j, mut l) = (0usize, 0usize);
+                while j < m || l < count {
+                    let outer_next = (j + 1) as f64 / m as f64;
+                    let inner_next = (l + 1) as f64 / count as f64;
+                    let outer_frac = if ring_is_loop {
+                        self.arc[(j + 1).min(n)] / perimeter
+                    } else {
+                        outer_next
+                    };
+                    let advance_outer = l == count || (j < m && outer_frac <= inner_next);
+                    let (a_j, b_l) = (self.ring[j % m], self.ring_next[l % count]);
+                    if advance_outer {
+                        let a_next = self.ring[(j + 1) % m];
+                        self.push_cap_triangle(body, [a_next, a_j, b_l]);
+                        push_rest_edge(body, a_next, b_l, k_edge, c_edge);
+                        j += 1;
+                    } else {
+                        let b_next = self.ring_next[(l + 1) % count];
+                        self.push_cap_triangle(body, [b_l, b_next, a_j]);
+                        push_rest_edge(body, b_next, a_j, k_edge, c_edge);
+                        l += 1;
+                    }
+                }
+                // The last rung created is the first one again: drop the duplicate spring.
+                body.edges.pop();
+                std::mem::swap(&mut self.ring, &mut self.ring_next);
+                ring_is_loop = false;
+            } else {
+                // The centre, fanned to the current ring.
+                let centre_node =
+                    self.push_cap_node(body, centre, centre_world, k_link, c_link, nu, part);
+                let m = self.ring.len();
+                for l in 0..m {
+                    let (a, b) = (self.ring[l], self.ring[(l + 1) % m]);
+                    self.push_cap_triangle(body, [b, a, centre_node]);
+                    push_rest_edge(body, a, centre_node, k_edge, c_edge);
+                }
+                break;
+            }
+        }
+        // Quality of the cap, and the rim edges are no longer boundary.
+        let h = &body.surface.homologue_in_body;
+        for t in &body.surface.triangles[first_triangle..] {
+            let angle = crate::topology::refine::min_angle_deg(&t.map(|v| h[v as usize]));
+            result.smallest_cap_angle_deg = result.smallest_cap_angle_deg.min(angle);
+            if angle < min_angle {
+                result.cap_quality_misses += 1;
+            }
+        }
+        true
+    }
+
+    /// Appends a cap node of part `part` at rest position `rest` (body frame) and `world`; its mass
+    /// and velocity are set once the caps are done.
+    #[allow(clippy::too_many_arguments)]
+    fn push_cap_node(
+        &mut self,
+        body: &mut Body,
+        rest: Vec3,
+        world: Vec3,
+        k_link: f64,
+        c_link: f64,
+        nu: f64,
+        part: u32,
+    ) -> u32 {
+        body.surface.push_node(
+            NewNode {
+                position_in_world: world,
+                next_position_in_world: world,
+                velocity_in_world: Vec3::zeros(),
+                mass: 1.0,
+                homologue_in_body: rest,
+                homologue_in_world: world,
+                link_stiffness: k_link,
+                link_damping: c_link,
+            },
+            nu,
+        );
+        self.part.push(part);
+        self.cap_area.push(0.0);
+        (body.node_count() - 1) as u32
+    }
+
+    /// Appends a cap triangle and gives a third of its rest area to each of its cap corners.
+    fn push_cap_triangle(&mut self, body: &mut Body, t: [u32; 3]) {
+        let h = &body.surface.homologue_in_body;
+        let area = triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
+        for v in t {
+            if (v as usize) >= self.cap_nodes_from {
+                self.cap_area[v as usize - self.cap_nodes_from] += area / 3.0;
+            }
+        }
+        body.surface.triangles.push(t);
+    }
+}
+
+/// The spare in slot `i`, if any.
+fn slot<'a>(spares: &'a mut [Option<&mut Body>], i: usize) -> Option<&'a mut Body> {
+    spares.get_mut(i)?.as_deref_mut()
+}
+
+/// Appends a spring between `a` and `b` at rest at their homologues' distance.
+fn push_rest_edge(body: &mut Body, a: u32, b: u32, stiffness: f64, damping: f64) {
+    let h = &body.surface.homologue_in_body;
+    let rest = (h[a as usize] - h[b as usize]).norm();
+    body.edges.push(a, b, rest, stiffness, damping);
+}
+
+/// Empties a body's mesh (its buffers keep their room).
+fn clear_mesh(body: &mut Body) {
+    while body.node_count() > 0 {
+        body.surface.pop_node();
+    }
+    body.surface.triangles.clear();
+    while !body.edges.is_empty() {
+        body.edges.pop();
+    }
+}
+
+/// Appends node `v` of `from` to `to`, with its whole state.
+fn copy_node(from: &crate::body::Surface, v: usize, to: &mut crate::body::Surface) {
+    to.position_in_world.push(from.position_in_world[v]);
+    to.next_position_in_world
+        .push(from.next_position_in_world[v]);
+    to.velocity_in_world.push(from.velocity_in_world[v]);
+    to.force_in_world.push(from.force_in_world[v]);
+    to.mass.push(from.mass[v]);
+    to.inverse_mass.push(from.inverse_mass[v]);
+    to.air_damping.push(from.air_damping[v]);
+    to.homologue_in_body.push(from.homologue_in_body[v]);
+    to.homologue_in_world.push(from.homologue_in_world[v]);
+    to.link_stiffness.push(from.link_stiffness[v]);
+    to.link_damping.push(from.link_damping[v]);
+    to.tool_contact.push(from.tool_contact[v]);
+    to.stiffness_diagonal.push(0.0);
+    to.damping_diagonal.push(0.0);
+}
+
+/// Gives `piece` (homologues still in the parent's frame) a rigid component of `mass`: origin at the
+/// centroid of its enclosed rest solid, the solid's inertia, the parent's orientation and state;
+/// re-expresses the homologues. Returns the new origin in the parent's body frame.
+fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64) -> Vec3 {
+    let s = &mut piece.surface;
+    let (volume, first, second) = solid_moments(&s.homologue_in_body, &s.triangles);
+    let surface_mass: f64 = s.mass.iter().sum();
+    let (origin, inertia) = if volume > 0.0 && volume.is_finite() {
+        let c = first / volume;
+        (c, inertia_about(volume, &first, &second, mass, &c))
+    } else {
+        // Not closed: the surface's centre of mass and a point mass's isotropic inertia.
+        let mut c = Vec3::zeros();
+        for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
+            c += h * *m;
+        }
+        (c / surface_mass, Matrix3::identity() * mass)
+    };
+    for h in &mut s.homologue_in_body {
+        *h -= origin;
+    }
+    let inverse = inertia
+        .try_inverse()
+        .unwrap_or_else(|| Matrix3::identity() / mass);
+    let r = &mut piece.rigid;
+    *r = parent.clone();
+    r.mass = mass;
+    r.inertia_in_body = inertia;
+    r.inverse_inertia_in_body = inverse;
+    r.position_in_world = parent.position_in_world + parent.world_from_body * origin;
+    r.fixed = piece.params.fixed;
+    origin
+}
