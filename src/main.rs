@@ -174,6 +174,9 @@ struct Recording {
     sink: palpa::daemon::sink::RecordSink,
     #[cfg(feature = "record")]
     meshes: std::cell::RefCell<palpa::display::MeshSchedule>,
+    /// Bodies announced so far (transections add some).
+    #[cfg(feature = "record")]
+    known_bodies: std::cell::Cell<usize>,
 }
 
 impl Recording {
@@ -187,6 +190,7 @@ impl Recording {
                 meshes: std::cell::RefCell::new(palpa::display::MeshSchedule::new(
                     world, 60.0, 2.0,
                 )),
+                known_bodies: std::cell::Cell::new(world.bodies.len()),
             });
         };
         let session = SessionInfo {
@@ -199,6 +203,7 @@ impl Recording {
         let this = Self {
             sink: RecordSink::to(recorder),
             meshes: std::cell::RefCell::new(palpa::display::MeshSchedule::new(world, 60.0, 2.0)),
+            known_bodies: std::cell::Cell::new(world.bodies.len()),
         };
         this.mesh(world);
         Ok(this)
@@ -252,6 +257,9 @@ impl Recording {
                     }
                 }
             }
+            let mut known = self.known_bodies.get();
+            self.sink.bodies_added(world, &mut known);
+            self.known_bodies.set(known);
             self.mesh(world);
         }
         #[cfg(not(feature = "record"))]

@@ -253,6 +253,7 @@ pub fn serve(
     }
     let node = create_node()?;
     let mut world = World::from_scene(scene);
+    let mut known_bodies = world.bodies.len();
     let dt = world.params.dt;
 
     // Ports of the externally driven tools, by tool index.
@@ -396,6 +397,7 @@ pub fn serve(
                 CONTROL_RESET => {
                     sink.event(world.tick, event::RESET, None);
                     world = World::from_scene(scene);
+                    known_bodies = world.bodies.len();
                     meshes.reset(&world);
                     stability_margin = world
                         .stability_margins()
@@ -465,6 +467,7 @@ pub fn serve(
         }
         // The divergence guard restored a body in this step: flag every tool's feedback, record
         // which body and why, count it.
+        sink.bodies_added(&world, &mut known_bodies);
         let diverged = stepped && crate::daemon::guard_acted(&world);
         if diverged {
             summary.guard_ticks += 1;

@@ -19,6 +19,8 @@ pub mod event {
     pub const PAUSE: i32 = 7;
     /// The simulation was resumed.
     pub const RESUME: i32 = 8;
+    /// A transection made a new body.
+    pub const BODY_ADDED: i32 = 9;
 }
 
 /// The recording side of a session.
@@ -116,6 +118,27 @@ impl RecordSink {
         }
         #[cfg(not(feature = "record"))]
         let _ = (tick, body, cause);
+    }
+
+    /// Announces the bodies a transection added in the step that ended at `world.tick` (those past
+    /// `known`, which follows them). Allocation-free: the name travels in a fixed buffer.
+    pub fn bodies_added(&self, world: &crate::world::World, known: &mut usize) {
+        while *known < world.bodies.len() {
+            #[cfg(feature = "record")]
+            if let Some(r) = &self.recorder {
+                let name = world.bodies[*known].name.as_bytes();
+                let mut buffer = [0u8; crate::record::recorder::MAX_BODY_NAME];
+                let len = name.len().min(buffer.len());
+                buffer[..len].copy_from_slice(&name[..len]);
+                r.push(crate::record::recorder::Record::BodyAdded {
+                    tick: world.tick,
+                    body: (*known).min(u16::MAX as usize) as u16,
+                    name: buffer,
+                    len: len as u8,
+                });
+            }
+            *known += 1;
+        }
     }
 
     /// Records dropped so far.

@@ -421,6 +421,9 @@ impl MeshSchedule {
     /// A schedule for `world` at `display_rate_hz`, with keyframes every `keyframe_every_s` seconds.
     pub fn new(world: &crate::world::World, display_rate_hz: f64, keyframe_every_s: f64) -> Self {
         let dt = world.params.dt;
+        // Bodies still to come (pieces of transections) get an encoder and room now; their first
+        // message is a keyframe.
+        let (spare_vertices, spare_triangles) = world.spare_mesh_capacity();
         let bytes = world
             .bodies
             .iter()
@@ -428,20 +431,28 @@ impl MeshSchedule {
                 let (vertices, triangles) = b.mesh_capacity();
                 max_message_bytes(vertices, triangles)
             })
+            .chain(std::iter::once(max_message_bytes(
+                spare_vertices,
+                spare_triangles,
+            )))
             .max()
             .unwrap_or(0)
             .max(1);
+        let mut encoders: Vec<MeshEncoder> = world
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(i, b)| MeshEncoder::with_capacity(i as u32, b.node_count(), b.mesh_capacity().0))
+            .collect();
+        for i in world.bodies.len()..world.body_capacity() {
+            let mut spare = MeshEncoder::with_capacity(i as u32, 0, spare_vertices);
+            spare.sent_topology = u64::MAX;
+            encoders.push(spare);
+        }
         Self {
             display_every: ((1.0 / (display_rate_hz.max(1e-3) * dt)).round() as u64).max(1),
             keyframe_every: ((keyframe_every_s / dt).round() as u64).max(1),
-            encoders: world
-                .bodies
-                .iter()
-                .enumerate()
-                .map(|(i, b)| {
-                    MeshEncoder::with_capacity(i as u32, b.node_count(), b.mesh_capacity().0)
-                })
-                .collect(),
+            encoders,
             scratch: vec![0; bytes],
             keyframe_requested: true,
             next_keyframe: 0,
@@ -467,6 +478,10 @@ impl MeshSchedule {
     pub fn reset(&mut self, world: &crate::world::World) {
         for (e, b) in self.encoders.iter_mut().zip(&world.bodies) {
             *e = MeshEncoder::with_capacity(e.body, b.node_count(), b.mesh_capacity().0);
+        }
+        for e in self.encoders.iter_mut().skip(world.bodies.len()) {
+            e.sent.clear();
+            e.sent_topology = u64::MAX;
         }
         self.keyframe_requested = true;
     }

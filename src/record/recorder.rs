@@ -26,6 +26,9 @@ use crate::ipc::payload::{MESH_KEYFRAME, MeshHeaderV1, StatsV1, ToolFeedbackV1, 
 use crate::scene::Scene;
 use crate::world::World;
 
+/// Longest body name a [`Record::BodyAdded`] carries (bytes).
+pub const MAX_BODY_NAME: usize = 96;
+
 /// Records the tick hands to the recorder.
 #[derive(Debug)]
 pub enum Record {
@@ -64,6 +67,17 @@ pub enum Record {
         body: u16,
         /// Why.
         cause: GuardCause,
+    },
+    /// A transection added body `body`, named by the first `len` bytes of `name` (UTF-8).
+    BodyAdded {
+        /// Tick at whose end it appeared.
+        tick: u64,
+        /// Its index.
+        body: u16,
+        /// Its name.
+        name: [u8; MAX_BODY_NAME],
+        /// Bytes of the name.
+        len: u8,
     },
     /// Something that happened.
     Event {
@@ -152,6 +166,7 @@ impl Recorder {
 
         let queue = Arc::new(ArrayQueue::new(settings.queue_capacity));
         let pool = Arc::new(ArrayQueue::new(settings.mesh_buffers.max(1)));
+        let (spare_vertices, spare_triangles) = world.spare_mesh_capacity();
         let mesh_bytes = world
             .bodies
             .iter()
@@ -159,6 +174,10 @@ impl Recorder {
                 let (vertices, triangles) = b.mesh_capacity();
                 crate::display::max_message_bytes(vertices, triangles)
             })
+            .chain(std::iter::once(crate::display::max_message_bytes(
+                spare_vertices,
+                spare_triangles,
+            )))
             .max()
             .unwrap_or(0);
         for _ in 0..settings.mesh_buffers.max(1) {
@@ -539,6 +558,7 @@ impl WriterThread {
                         "{} records dropped (queue or mesh pool full)",
                         dropped - reported_drops
                     ),
+                    ..proto::Event::default()
                 };
                 self.channels
                     .write(
@@ -673,6 +693,35 @@ impl WriterThread {
                     kind: proto::event::Kind::DivergenceGuard as i32,
                     tool: String::new(),
                     detail: format!("body {name}: {cause:?}"),
+                    body: body as u32,
+                    body_name: name.clone(),
+                };
+                self.channels.write(
+                    &mut self.writer,
+                    TOPIC_EVENTS,
+                    tick * dt,
+                    &message.encode_to_vec(),
+                )?;
+                Ok(tick)
+            }
+            Record::BodyAdded {
+                tick,
+                body,
+                name,
+                len,
+            } => {
+                let name = String::from_utf8_lossy(&name[..len as usize]).into_owned();
+                if body as usize >= self.body_names.len() {
+                    self.body_names.resize(body as usize + 1, String::new());
+                }
+                self.body_names[body as usize] = name.clone();
+                self.visual.ensure_bodies(body as usize + 1);
+                let message = proto::Event {
+                    tick,
+                    kind: crate::daemon::sink::event::BODY_ADDED,
+                    body: body as u32,
+                    body_name: name,
+                    ..proto::Event::default()
                 };
                 self.channels.write(
                     &mut self.writer,
@@ -691,7 +740,7 @@ impl WriterThread {
                     } else {
                         self.tool_name(tool)
                     },
-                    detail: String::new(),
+                    ..proto::Event::default()
                 };
                 self.channels.write(
                     &mut self.writer,

@@ -46,6 +46,13 @@ impl VisualState {
         }
     }
 
+    /// Makes room for `bodies` bodies (a transection added some; runs on the writer thread).
+    pub fn ensure_bodies(&mut self, bodies: usize) {
+        if self.bodies.len() < bodies {
+            self.bodies.resize(bodies, (Vec::new(), Vec::new()));
+        }
+    }
+
     /// A tool's pose as used.
     pub fn set_tool_pose(&mut self, tool: usize, pose: ToolPose) {
         if let Some(t) = self.tools.get_mut(tool) {
