@@ -125,7 +125,7 @@ typedef struct {
  */
 typedef struct {
     uint32_t kind;            /* 0 keyframe, 1 delta */
-    uint32_t body;            /* body index in scene order */
+    uint32_t body;            /* body index: scene order, then bodies a transection added in order of creation (each starts with a keyframe) */
     uint64_t tick;            /* tick of the state this message brings the display to */
     uint64_t base_tick;       /* delta: tick of the state it applies to; keyframe: = tick */
     uint32_t vertex_count;    /* vertices of the body at `tick` */

@@ -195,7 +195,8 @@ pub const MESH_DELTA: u32 = 1;
 pub struct MeshHeaderV1 {
     /// `MESH_KEYFRAME` or `MESH_DELTA`.
     pub kind: u32,
-    /// Body index in scene order.
+    /// Body index: scene order, then bodies a transection added, in order of creation (each starts
+    /// with a keyframe).
     pub body: u32,
     /// Tick of the state this message brings the display to.
     pub tick: u64,
