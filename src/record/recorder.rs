@@ -586,6 +586,17 @@ impl WriterThread {
         })
     }
 
+    /// Writes an event on the events channel at its tick; returns the tick.
+    fn write_event(&mut self, message: &proto::Event, dt: u64) -> mcap::McapResult<u64> {
+        self.channels.write(
+            &mut self.writer,
+            TOPIC_EVENTS,
+            message.tick * dt,
+            &message.encode_to_vec(),
+        )?;
+        Ok(message.tick)
+    }
+
     fn tool_name(&self, tool: u16) -> String {
         self.tool_names
             .get(tool as usize)
@@ -696,13 +707,7 @@ impl WriterThread {
                     body: body as u32,
                     body_name: name.clone(),
                 };
-                self.channels.write(
-                    &mut self.writer,
-                    TOPIC_EVENTS,
-                    tick * dt,
-                    &message.encode_to_vec(),
-                )?;
-                Ok(tick)
+                self.write_event(&message, dt)
             }
             Record::BodyAdded {
                 tick,
@@ -718,18 +723,12 @@ impl WriterThread {
                 self.visual.ensure_bodies(body as usize + 1);
                 let message = proto::Event {
                     tick,
-                    kind: crate::daemon::sink::event::BODY_ADDED,
+                    kind: proto::event::Kind::BodyAdded as i32,
                     body: body as u32,
                     body_name: name,
                     ..proto::Event::default()
                 };
-                self.channels.write(
-                    &mut self.writer,
-                    TOPIC_EVENTS,
-                    tick * dt,
-                    &message.encode_to_vec(),
-                )?;
-                Ok(tick)
+                self.write_event(&message, dt)
             }
             Record::Event { tick, kind, tool } => {
                 let message = proto::Event {
@@ -742,13 +741,7 @@ impl WriterThread {
                     },
                     ..proto::Event::default()
                 };
-                self.channels.write(
-                    &mut self.writer,
-                    TOPIC_EVENTS,
-                    tick * dt,
-                    &message.encode_to_vec(),
-                )?;
-                Ok(tick)
+                self.write_event(&message, dt)
             }
         }
     }

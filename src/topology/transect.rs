@@ -375,7 +375,12 @@ impl Transector {
             if p != kept
                 && let Some(piece) = slot(spares, slot_of[p])
             {
-                copy_node(&body.surface, v, &mut piece.surface);
+                copy_node(
+                    &body.surface,
+                    v,
+                    &mut piece.surface,
+                    body.params.air_viscosity,
+                );
             }
         }
         for t in &body.surface.triangles {
@@ -414,11 +419,7 @@ impl Transector {
             rigid_mass[p] = parent_rigid.mass * self.part_mass[p] / surface_total;
         }
         for p in 0..self.parts {
-            let piece: &mut Body = if p == kept {
-                body
-            } else if let Some(piece) = slot(spares, slot_of[p]) {
-                piece
-            } else {
+            let Some(piece) = part_body(body, spares, slot_of[p]) else {
                 continue;
             };
             origins[p] = rebase_rigid(piece, &parent_rigid, rigid_mass[p]);
@@ -429,11 +430,7 @@ impl Transector {
         let rotation = parent_rigid.world_from_body;
         let mut angular = Vec3::zeros();
         for p in 0..self.parts {
-            let piece: &mut Body = if p == kept {
-                body
-            } else if let Some(piece) = slot(spares, slot_of[p]) {
-                piece
-            } else {
+            let Some(piece) = part_body(body, spares, slot_of[p]) else {
                 continue;
             };
             let r = &mut piece.rigid;
@@ -451,11 +448,7 @@ impl Transector {
         if !parent_rigid.fixed {
             let left = parent_rigid.angular_momentum_in_world - angular;
             for p in 0..self.parts {
-                let piece: &mut Body = if p == kept {
-                    body
-                } else if let Some(piece) = slot(spares, slot_of[p]) {
-                    piece
-                } else {
+                let Some(piece) = part_body(body, spares, slot_of[p]) else {
                     continue;
                 };
                 if !piece.rigid.fixed {
@@ -466,11 +459,7 @@ impl Transector {
         }
         // Boundary counts of every piece.
         for p in 0..self.parts {
-            let piece: &mut Body = if p == kept {
-                body
-            } else if let Some(piece) = slot(spares, slot_of[p]) {
-                piece
-            } else {
+            let Some(piece) = part_body(body, spares, slot_of[p]) else {
                 continue;
             };
             piece.boundary_edges = self.boundary_next(piece);
@@ -736,6 +725,20 @@ impl Transector {
     }
 }
 
+/// The body a part goes to: the body itself for the kept part (`slot` = `usize::MAX`), otherwise the
+/// spare in `slot`.
+fn part_body<'a>(
+    body: &'a mut Body,
+    spares: &'a mut [Option<&mut Body>],
+    slot_index: usize,
+) -> Option<&'a mut Body> {
+    if slot_index == usize::MAX {
+        Some(body)
+    } else {
+        slot(spares, slot_index)
+    }
+}
+
 /// The spare in slot `i`, if any.
 fn slot<'a>(spares: &'a mut [Option<&mut Body>], i: usize) -> Option<&'a mut Body> {
     spares.get_mut(i)?.as_deref_mut()
@@ -759,23 +762,30 @@ fn clear_mesh(body: &mut Body) {
     }
 }
 
-/// Appends node `v` of `from` to `to`, with its whole state.
-fn copy_node(from: &crate::body::Surface, v: usize, to: &mut crate::body::Surface) {
-    to.position_in_world.push(from.position_in_world[v]);
-    to.next_position_in_world
-        .push(from.next_position_in_world[v]);
-    to.velocity_in_world.push(from.velocity_in_world[v]);
-    to.force_in_world.push(from.force_in_world[v]);
-    to.mass.push(from.mass[v]);
-    to.inverse_mass.push(from.inverse_mass[v]);
-    to.air_damping.push(from.air_damping[v]);
-    to.homologue_in_body.push(from.homologue_in_body[v]);
-    to.homologue_in_world.push(from.homologue_in_world[v]);
-    to.link_stiffness.push(from.link_stiffness[v]);
-    to.link_damping.push(from.link_damping[v]);
-    to.tool_contact.push(from.tool_contact[v]);
-    to.stiffness_diagonal.push(0.0);
-    to.damping_diagonal.push(0.0);
+/// Appends node `v` of `from` to `to`, with its whole state (air damping and inverse mass follow the
+/// mass; the force is the next tick's to accumulate).
+fn copy_node(
+    from: &crate::body::Surface,
+    v: usize,
+    to: &mut crate::body::Surface,
+    air_viscosity: f64,
+) {
+    to.push_node(
+        NewNode {
+            position_in_world: from.position_in_world[v],
+            next_position_in_world: from.next_position_in_world[v],
+            velocity_in_world: from.velocity_in_world[v],
+            mass: from.mass[v],
+            homologue_in_body: from.homologue_in_body[v],
+            homologue_in_world: from.homologue_in_world[v],
+            link_stiffness: from.link_stiffness[v],
+            link_damping: from.link_damping[v],
+        },
+        air_viscosity,
+    );
+    if let Some(contact) = to.tool_contact.last_mut() {
+        *contact = from.tool_contact[v];
+    }
 }
 
 /// Gives `piece` (homologues still in the parent's frame) a rigid component of `mass`: origin at the
