@@ -11,13 +11,72 @@ use palpa::scene::{WorldParams, parse_scene};
 use palpa::world::World;
 
 fn light_nodes(integrator: Integrator, dt: f64) -> World {
+    light_nodes_with(integrator, dt, "1.0", "50.0")
+}
+
+fn light_nodes_with(integrator: Integrator, dt: f64, rigid_mass: &str, stiffness: &str) -> World {
     let path = common::repo_root().join("scenes/stress/light_nodes.toml");
-    let text = std::fs::read_to_string(&path).unwrap().replacen(
-        "[world]",
-        &format!("[world]\nintegrator = \"{}\"\ndt = {dt}", integrator.name()),
-        1,
-    );
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replacen(
+            "[world]",
+            &format!("[world]\nintegrator = \"{}\"\ndt = {dt}", integrator.name()),
+            1,
+        )
+        .replacen("rigid_mass = 1.0", &format!("rigid_mass = {rigid_mass}"), 1)
+        .replacen(
+            "surface_stiffness = 50.0",
+            &format!("surface_stiffness = {stiffness}"),
+            1,
+        );
     World::from_scene(&parse_scene(&text, "light_nodes.toml", path.parent().unwrap()).unwrap())
+}
+
+/// A rigid component so light (1 g) that its coupling is sub-stepped, with the light node (springs
+/// 4× stiffer) needing a finer step still: every node steps at the rigid component's pace, the light
+/// node at its own finer one in between (not the whole body at the finest). Against the reference
+/// scheme at 0.01 ms: 1.5e-4 m measured; a light node stepped only at the rigid component's pace
+/// (its substeps between left out) is 6.4e-4 m off.
+#[test]
+fn multirate_steps_a_light_node_finer_than_a_sub_stepped_rigid_component() {
+    let seconds = 0.3;
+    let mut coarse = light_nodes_with(Integrator::Multirate, 0.001, "0.001", "200.0");
+    let (substeps, _) = coarse.substeps_of(0);
+    let rigid = coarse.rigid_substeps_of(0);
+    assert!(
+        rigid.is_some_and(|r| r >= 2 && r < substeps),
+        "the rigid component is sub-stepped ({rigid:?}) coarser than the light node ({substeps})"
+    );
+    let mut fine = light_nodes_with(Integrator::Symplectic, 0.00001, "0.001", "200.0");
+    assert!(
+        fine.stability_margins()[0].margin > 0.0,
+        "the reference is stable at 0.01 ms"
+    );
+    for _ in 0..(seconds / 0.001_f64).round() as usize {
+        coarse.step();
+    }
+    for _ in 0..(seconds / 0.00001_f64).round() as usize {
+        fine.step();
+    }
+    assert_eq!(coarse.guards[0].events, 0, "multirate needs no guard");
+    let (a, b) = (&coarse.bodies[0], &fine.bodies[0]);
+    let worst = a
+        .surface
+        .position_in_world
+        .iter()
+        .zip(&b.surface.position_in_world)
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max);
+    let rigid_gap = (a.rigid.position_in_world - b.rigid.position_in_world).norm();
+    eprintln!(
+        "multirate (rigid {rigid:?}, light node {substeps} substeps) vs symplectic at 0.01 ms after \
+         {seconds} s: worst node {worst:e} m, rigid component {rigid_gap:e} m"
+    );
+    assert!(worst < 3e-4, "worst node {worst} m from the fine reference");
+    assert!(
+        rigid_gap < 1e-3,
+        "rigid component {rigid_gap} m from the fine reference"
+    );
 }
 
 #[test]

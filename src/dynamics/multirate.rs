@@ -47,6 +47,18 @@ pub struct Multirate {
     /// The rigid component is stepped by a linearly implicit update against the nodes' end-of-step
     /// states (its coupling passes the explicit limit, every node is stable at the step).
     pub rigid_implicit: bool,
+    /// With the rigid component sub-stepped: substeps between two updates of the rigid component
+    /// (1 unless some node needs a finer step than the rigid component's).
+    pub base_stride: u32,
+    /// With the rigid component sub-stepped: the nodes that need a finer step than the rigid
+    /// component's (light nodes a cut or a subdivision made, ...), finest first, then by index. Each
+    /// steps at its own level: node i every `2^(L − level[i])` substeps.
+    pub deep: Vec<u32>,
+    /// Each node's level (halvings of the step it needs; in rigid mode at least the rigid component's).
+    level: Vec<u32>,
+    /// Where each node was at the start of its current step, for its neighbours' interpolation.
+    x_base: Vec<Vec3>,
+    deep_force: Vec<Vec3>,
     local: Vec<u32>,
     start: Vec<u32>,
     neighbour: Vec<u32>,
@@ -77,6 +89,11 @@ impl Multirate {
             substeps: 1,
             rigid_substepped: false,
             rigid_implicit: false,
+            base_stride: 1,
+            deep: Vec::with_capacity(n),
+            level: Vec::with_capacity(n),
+            x_base: Vec::with_capacity(n),
+            deep_force: Vec::with_capacity(n),
             local: Vec::with_capacity(n),
             start: Vec::with_capacity(n + 1),
             neighbour: Vec::with_capacity(2 * m),
@@ -100,6 +117,8 @@ impl Multirate {
         let n = s.mass.len();
         node_bounds_into(body, &mut self.bound_stiffness, &mut self.bound_damping);
         self.fast.clear();
+        self.deep.clear();
+        self.level.clear();
         let mut level_max = 0;
         for i in 0..n {
             let mut level = 0;
@@ -118,6 +137,7 @@ impl Multirate {
                 self.fast.push(i as u32);
                 level_max = level_max.max(level);
             }
+            self.level.push(level);
         }
         // The rigid component against the surface on all its links (and its air). Met once per step
         // by sub-stepped nodes, the exchange is explicit and holds only to about half the explicit
@@ -149,10 +169,24 @@ impl Multirate {
         // of its six unknowns replaces the substeps its coupling (often its link damping) would need.
         self.rigid_implicit = rigid_level > 0 && level_max == 0;
         self.rigid_substepped = rigid_level > 0 && level_max > 0;
+        self.base_stride = 1;
         if self.rigid_substepped {
+            // Every node steps at least at the rigid component's pace; the nodes that need a finer
+            // step than that (deep) take it between the rigid component's updates, each at its own.
             self.fast.clear();
             self.fast.extend(0..n as u32);
+            self.base_stride = 1 << (level_max.max(rigid_level) - rigid_level);
             level_max = level_max.max(rigid_level);
+            for level in &mut self.level {
+                *level = (*level).max(rigid_level);
+            }
+            for l in (rigid_level + 1..=level_max).rev() {
+                for i in 0..n {
+                    if self.level[i] == l {
+                        self.deep.push(i as u32);
+                    }
+                }
+            }
         }
         self.substeps = 1 << level_max;
         self.local.clear();
@@ -193,6 +227,12 @@ impl Multirate {
         self.start[n] = 2 * e.len() as u32;
         self.touched.clear();
         self.touched.resize(n, false);
+        self.x_base.clear();
+        self.deep_force.clear();
+        if !self.deep.is_empty() {
+            self.x_base.resize(n, Vec3::zeros());
+            self.deep_force.resize(self.deep.len(), Vec3::zeros());
+        }
         let m = self.fast.len();
         for buffer in [
             &mut self.x,
@@ -332,8 +372,17 @@ impl Multirate {
             self.v[i] = s.velocity_in_world[i];
         }
         let h = dt / self.substeps as f64;
+        // The rigid component and the nodes its pace keeps stable step every `stride` substeps; the
+        // deep nodes at their own pace in between (`step_deep`).
+        let stride = self.base_stride;
+        let h_base = dt / (self.substeps / stride) as f64;
+        let deep = !self.deep.is_empty();
         for step in 0..self.substeps {
             let fraction = step as f64 / self.substeps as f64;
+            if step % stride != 0 {
+                self.step_deep(s, e, gravity, dt, step, fraction, obstacles, reactions);
+                continue;
+            }
             // Held nodes are where the tool takes them.
             for i in 0..n {
                 if s.tool_contact[i].tool != NO_TOOL {
@@ -370,18 +419,27 @@ impl Multirate {
                 self.f[a] += force;
                 self.f[b] -= force;
             }
+            if deep {
+                self.x_base[..n].copy_from_slice(&self.x[..n]);
+            }
+            let finest = self.substeps.trailing_zeros();
             for i in 0..n {
                 if s.tool_contact[i].tool != NO_TOOL {
                     continue;
                 }
+                let step = if deep {
+                    h * (1u32 << (finest - self.level[i])) as f64
+                } else {
+                    h_base
+                };
                 let start = self.x[i];
-                self.v[i] += self.f[i] * (h * s.inverse_mass[i]);
-                self.x[i] += self.v[i] * h;
+                self.v[i] += self.f[i] * (step * s.inverse_mass[i]);
+                self.x[i] += self.v[i] * step;
                 for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
                     if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
                         let incoming = self.v[i];
                         (self.v[i], self.x[i]) =
-                            resolve_point(&start, incoming, &plane, obstacle, h);
+                            resolve_point(&start, incoming, &plane, obstacle, step);
                         *reaction += (self.v[i] - incoming) * (s.mass[i] / dt);
                         self.touched[i] = true;
                     }
@@ -389,7 +447,25 @@ impl Multirate {
             }
             rigid.force_in_world += reaction_force;
             rigid.torque_in_world += reaction_torque;
-            rigid.integrate(h);
+            if deep {
+                // The deep nodes' homologues over the interval: from where the rigid component is
+                // to where it will be.
+                for &i in &self.deep {
+                    let i = i as usize;
+                    self.homologue_end[i] = centre + world_from_body * s.homologue_in_body[i];
+                }
+            }
+            rigid.integrate(h_base);
+            if deep {
+                let world_from_body = rigid.world_from_body.to_rotation_matrix();
+                for &i in &self.deep {
+                    let i = i as usize;
+                    // `f` is free until the next base step: it keeps the interval's start.
+                    self.f[i] = self.homologue_end[i];
+                    self.homologue_end[i] =
+                        rigid.position_in_world + world_from_body * s.homologue_in_body[i];
+                }
+            }
         }
         for i in 0..n {
             if s.tool_contact[i].tool != NO_TOOL {
@@ -404,6 +480,96 @@ impl Multirate {
             *flag = false;
         }
         touched
+    }
+
+    /// Substep `step` between two updates of the rigid component: the deep nodes whose own step
+    /// starts here (those of level ≥ L − trailing zeros of `step`) step, reading their neighbours
+    /// where they are (if they step now too) or interpolated over their own current step, and their
+    /// homologue interpolated between the rigid component's updates.
+    #[allow(clippy::too_many_arguments)]
+    fn step_deep(
+        &mut self,
+        s: &crate::body::Surface,
+        e: &crate::body::Edges,
+        gravity: &Vec3,
+        dt: f64,
+        step: u32,
+        fraction: f64,
+        obstacles: &[Obstacle],
+        reactions: &mut [Vec3],
+    ) {
+        let finest = self.substeps.trailing_zeros();
+        let h = dt / self.substeps as f64;
+        let stride = self.base_stride;
+        let h_base = h * stride as f64;
+        let phase_base = (step % stride) as f64 / stride as f64;
+        let lowest = finest - step.trailing_zeros();
+        let active = self
+            .deep
+            .iter()
+            .take_while(|&&i| self.level[i as usize] >= lowest)
+            .count();
+        // Forces of the nodes stepping now (the homologue's start is in `f`, its end in
+        // `homologue_end`), then their update.
+        for k in 0..active {
+            let i = self.deep[k] as usize;
+            if s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            let (x, v) = (self.x[i], self.v[i]);
+            let (start, end) = (self.f[i], self.homologue_end[i]);
+            let homologue = start + (end - start) * phase_base;
+            let homologue_velocity = (end - start) / h_base;
+            let mut force = gravity * s.mass[i] - v * s.air_damping[i]
+                + (homologue - x) * s.link_stiffness[i]
+                + (homologue_velocity - v) * s.link_damping[i];
+            for at in self.start[i] as usize..self.start[i + 1] as usize {
+                let j = self.neighbour[at] as usize;
+                let edge = self.edge[at] as usize;
+                let xj = if self.level[j] >= lowest {
+                    self.x[j]
+                } else {
+                    let own = 1u32 << (finest - self.level[j]);
+                    let phase = (step % own) as f64 / own as f64;
+                    let (a, b) = (self.x_base[j], self.x[j]);
+                    a + (b - a) * phase
+                };
+                let vj = self.v[j];
+                let d = xj - x;
+                let length = d.norm();
+                if length <= f64::MIN_POSITIVE {
+                    continue;
+                }
+                let inverse_length = 1.0 / length;
+                let magnitude = e.stiffness[edge] * (length - e.rest_length[edge])
+                    + e.damping[edge] * (vj - v).dot(&d) * inverse_length;
+                force += d * (magnitude * inverse_length);
+            }
+            self.deep_force[k] = force;
+        }
+        for k in 0..active {
+            let i = self.deep[k] as usize;
+            if s.tool_contact[i].tool != NO_TOOL {
+                // Held nodes are where the tool takes them.
+                let (a, b) = (s.position_in_world[i], s.next_position_in_world[i]);
+                self.x[i] = a + (b - a) * fraction;
+                self.v[i] = (b - a) / dt;
+                continue;
+            }
+            let own = h * (1u32 << (finest - self.level[i])) as f64;
+            let start = self.x[i];
+            self.x_base[i] = start;
+            self.v[i] += self.deep_force[k] * (own * s.inverse_mass[i]);
+            self.x[i] += self.v[i] * own;
+            for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
+                if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
+                    let incoming = self.v[i];
+                    (self.v[i], self.x[i]) = resolve_point(&start, incoming, &plane, obstacle, own);
+                    *reaction += (self.v[i] - incoming) * (s.mass[i] / dt);
+                    self.touched[i] = true;
+                }
+            }
+        }
     }
 }
 
