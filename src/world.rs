@@ -236,6 +236,10 @@ pub enum Stage {
     Subdivision,
     /// Body–body broad phase (BVH) and continuous detection, with the response.
     BodyContact,
+    /// Cuts along the blades' sweeps (incision steps), with the solvers' update after a cut.
+    Cut,
+    /// A body a cut separated made into bodies (parts found, caps, rigid components split).
+    Transection,
     /// Positions committed, rigid components integrated.
     Commit,
     /// Divergence guard, feedback clamp.
@@ -244,7 +248,7 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in step order.
-    pub const ALL: [Stage; 10] = [
+    pub const ALL: [Stage; 12] = [
         Stage::Tools,
         Stage::Forces,
         Stage::Contact,
@@ -254,6 +258,8 @@ impl Stage {
         Stage::Subdivision,
         Stage::BodyContact,
         Stage::Commit,
+        Stage::Cut,
+        Stage::Transection,
         Stage::Guard,
     ];
 
@@ -268,6 +274,8 @@ impl Stage {
             Stage::ToolCcd => "tool_ccd",
             Stage::Subdivision => "subdivision",
             Stage::BodyContact => "body_contact",
+            Stage::Cut => "cut",
+            Stage::Transection => "transection",
             Stage::Commit => "commit",
             Stage::Guard => "guard",
         }
@@ -291,7 +299,7 @@ impl StageClock for NoClock {
 #[derive(Clone, Debug, Default)]
 pub struct StepProfile {
     /// Seconds per stage, indexed like [`Stage::ALL`].
-    pub seconds: [f64; 10],
+    pub seconds: [f64; 12],
     /// Steps profiled.
     pub steps: u64,
     current: Option<(Stage, std::time::Instant)>,
@@ -857,7 +865,6 @@ impl World {
             }
         }
         // Cuts along the blades' sweeps, then coarsening, before the guard looks at the bodies.
-        clock.enter(Stage::Subdivision);
         for (((body, solver), refinement), cutter) in self
             .bodies
             .iter_mut()
@@ -868,6 +875,7 @@ impl World {
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
             {
+                clock.enter(Stage::Cut);
                 let mut changed = false;
                 for (tool_index, tool) in self.tools.iter().enumerate() {
                     if !matches!(tool.shape, ToolShape::Blade { .. }) || tool.part_count == 0 {
@@ -908,6 +916,7 @@ impl World {
                 }
             }
             if let Some(refinement) = refinement.as_mut() {
+                clock.enter(Stage::Subdivision);
                 let removed = refinement.coarsen(body, self.tick + 1, dt);
                 if removed > 0 {
                     counters.coarsenings += removed;
@@ -917,6 +926,7 @@ impl World {
         }
         // A cut that opened edges may have cut a body in parts: each becomes a body.
         if systems.cutting {
+            clock.enter(Stage::Transection);
             for b in 0..self.bodies.len() {
                 if self.cutters[b]
                     .as_mut()
@@ -1035,7 +1045,9 @@ impl World {
     /// nodes (its coupling passes the explicit limit); `None` otherwise.
     pub fn rigid_substeps_of(&self, body: usize) -> Option<u32> {
         match self.solvers.get(body) {
-            Some(BodySolver::Multirate(m)) if m.rigid_substepped => Some(m.substeps),
+            Some(BodySolver::Multirate(m)) if m.rigid_substepped => {
+                Some(m.substeps / m.base_stride)
+            }
             _ => None,
         }
     }

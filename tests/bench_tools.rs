@@ -233,3 +233,38 @@ fn report_quick_writes_consistent_figures() {
     assert_eq!(extremes.len(), 21);
     assert!(extremes.iter().all(|x| x["outcome"] != "non-finite"));
 }
+
+#[test]
+fn bench_cut_quick_writes_consistent_figures() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = out_dir("bench_cut");
+    run(
+        env!("CARGO_BIN_EXE_palpa-bench"),
+        &["cut", "--quick", "--out", dir.to_str().unwrap()],
+    );
+    assert!(dir.join("cut.md").is_file() && dir.join("cut_ticks.svg").is_file());
+    let r = json(&dir.join("cut.json"));
+    assert_eq!(finite(&r["nodes"]), 2562.0);
+    // The blade drew a cut: lips of some 10 cm (edges of about 4 mm: tens of boundary edges).
+    assert!(
+        finite(&r["boundary_edges"]) >= 40.0,
+        "{}",
+        r["boundary_edges"]
+    );
+    for variant in ["with_cut", "without_cut"] {
+        let v = &r[variant];
+        assert_eq!(finite(&v["samples"]), 1000.0, "{variant}: the draw's ticks");
+        let (p50, p999, max) = (
+            finite(&v["p50_us"]),
+            finite(&v["p999_us"]),
+            finite(&v["max_us"]),
+        );
+        assert!(0.0 < p50 && p50 <= p999 && p999 <= max, "{variant}: {v}");
+    }
+    let steps = &r["incision_step"];
+    assert_eq!(finite(&steps["samples"]), finite(&r["cut_ticks_per_run"]));
+    assert!(finite(&steps["samples"]) > 0.0);
+    // The transection scene's tube separates (at the tick the cutting tests find), in two bodies.
+    assert_eq!(finite(&r["transection"]["bodies_after"]), 2.0);
+    assert!(finite(&r["transection"]["stage"]["mean_us"]) > 0.0);
+}

@@ -56,6 +56,8 @@ pub struct Multirate {
     pub deep: Vec<u32>,
     /// Each node's level (halvings of the step it needs; in rigid mode at least the rigid component's).
     level: Vec<u32>,
+    /// Row of each node in the neighbour lists (`u32::MAX`: none).
+    row: Vec<u32>,
     /// Where each node was at the start of its current step, for its neighbours' interpolation.
     x_base: Vec<Vec3>,
     deep_force: Vec<Vec3>,
@@ -92,6 +94,7 @@ impl Multirate {
             base_stride: 1,
             deep: Vec::with_capacity(n),
             level: Vec::with_capacity(n),
+            row: Vec::with_capacity(n),
             x_base: Vec::with_capacity(n),
             deep_force: Vec::with_capacity(n),
             local: Vec::with_capacity(n),
@@ -199,37 +202,63 @@ impl Multirate {
         for (k, &i) in self.fast.iter().enumerate() {
             self.local[i as usize] = k as u32;
         }
-        // Incident edges of every node (CSR), in edge order.
+        // Incident edges (CSR, in edge order) of the nodes stepped alone between the others: the
+        // fast nodes, or with the rigid component sub-stepped the deep ones. Row r is the r-th of
+        // them; `row` maps a node to its row.
+        self.row.clear();
+        self.row.resize(n, u32::MAX);
+        let rows: &[u32] = if self.rigid_substepped {
+            &self.deep
+        } else {
+            &self.fast
+        };
+        for (r, &i) in rows.iter().enumerate() {
+            self.row[i as usize] = r as u32;
+        }
+        let count = rows.len();
         let e = &body.edges;
         self.start.clear();
-        self.start.resize(n + 1, 0);
-        for k in 0..e.len() {
-            self.start[e.a[k] as usize + 1] += 1;
-            self.start[e.b[k] as usize + 1] += 1;
-        }
-        for i in 0..n {
-            self.start[i + 1] += self.start[i];
-        }
-        self.neighbour.clear();
-        self.neighbour.resize(2 * e.len(), 0);
-        self.edge.clear();
-        self.edge.resize(2 * e.len(), 0);
-        // Fill each node's slots from the back, `start[i + 1]` (the end of node i's slots) serving as
-        // the cursor: it counts down to the first slot of node i.
-        for k in (0..e.len()).rev() {
-            for (me, other) in [(e.b[k], e.a[k]), (e.a[k], e.b[k])] {
-                let me = me as usize;
-                self.start[me + 1] -= 1;
-                let at = self.start[me + 1] as usize;
-                self.neighbour[at] = other;
-                self.edge[at] = k as u32;
+        self.start.resize(count + 1, 0);
+        if count > 0 {
+            for k in 0..e.len() {
+                for node in [e.a[k], e.b[k]] {
+                    let r = self.row[node as usize];
+                    if r != u32::MAX {
+                        self.start[r as usize + 1] += 1;
+                    }
+                }
+            }
+            for r in 0..count {
+                self.start[r + 1] += self.start[r];
             }
         }
-        // Now `start[i + 1]` is where node i's slots begin: shift down by one.
-        for i in 0..n {
-            self.start[i] = self.start[i + 1];
+        let slots = self.start[count] as usize;
+        self.neighbour.clear();
+        self.neighbour.resize(slots, 0);
+        self.edge.clear();
+        self.edge.resize(slots, 0);
+        if count > 0 {
+            // Fill each row's slots from the back, `start[r + 1]` (the end of row r's slots)
+            // serving as the cursor: it counts down to the first slot of row r.
+            for k in (0..e.len()).rev() {
+                for (me, other) in [(e.b[k], e.a[k]), (e.a[k], e.b[k])] {
+                    let r = self.row[me as usize];
+                    if r == u32::MAX {
+                        continue;
+                    }
+                    let r = r as usize;
+                    self.start[r + 1] -= 1;
+                    let at = self.start[r + 1] as usize;
+                    self.neighbour[at] = other;
+                    self.edge[at] = k as u32;
+                }
+            }
+            // Now `start[r + 1]` is where row r's slots begin: shift down by one.
+            for r in 0..count {
+                self.start[r] = self.start[r + 1];
+            }
+            self.start[count] = slots as u32;
         }
-        self.start[n] = 2 * e.len() as u32;
         self.touched.clear();
         self.touched.resize(n, false);
         self.x_base.clear();
@@ -312,7 +341,7 @@ impl Multirate {
                 let mut force = gravity * s.mass[i] - v * s.air_damping[i]
                     + (homologue - x) * s.link_stiffness[i]
                     + (homologue_velocity - v) * s.link_damping[i];
-                for at in self.start[i] as usize..self.start[i + 1] as usize {
+                for at in self.start[k] as usize..self.start[k + 1] as usize {
                     let j = self.neighbour[at] as usize;
                     let edge = self.edge[at] as usize;
                     let (xj, vj) = match self.local[j] {
@@ -528,7 +557,7 @@ impl Multirate {
             let mut force = gravity * s.mass[i] - v * s.air_damping[i]
                 + (homologue - x) * s.link_stiffness[i]
                 + (homologue_velocity - v) * s.link_damping[i];
-            for at in self.start[i] as usize..self.start[i + 1] as usize {
+            for at in self.start[k] as usize..self.start[k + 1] as usize {
                 let j = self.neighbour[at] as usize;
                 let edge = self.edge[at] as usize;
                 let xj = if self.level[j] >= lowest {

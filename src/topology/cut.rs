@@ -205,6 +205,10 @@ pub struct Cutter {
     stamp: u32,
     node_stamp: Vec<u32>,
     cut_stamp: Vec<u32>,
+    /// Nodes near this step's crossings (their ends, the blade's tips): the triangles around them
+    /// are the only ones a step looks at.
+    near_stamp: Vec<u32>,
+    candidates: Vec<u32>,
     copy_origin: Vec<u32>,
     crossings: Vec<Crossing>,
     split_rest: Vec<Vec3>,
@@ -307,6 +311,10 @@ impl Cutter {
             stamp: 0,
             node_stamp: vec![0; capacity],
             cut_stamp: vec![0; capacity],
+            near_stamp: vec![0; capacity],
+            candidates: Vec::with_capacity(
+                body.mesh_capacity().1.max(body.surface.triangles.len()),
+            ),
             copy_origin: Vec::with_capacity(capacity),
             crossings: Vec::with_capacity(MAX_CROSSINGS),
             split_rest: Vec::with_capacity(MAX_CROSSINGS),
@@ -356,6 +364,7 @@ impl Cutter {
         if self.stamp == 0 {
             self.node_stamp.iter_mut().for_each(|s| *s = 0);
             self.cut_stamp.iter_mut().for_each(|s| *s = 0);
+            self.near_stamp.iter_mut().for_each(|s| *s = 0);
             self.stamp = 1;
         }
         self.stamp
@@ -451,14 +460,17 @@ impl Cutter {
         if self.crossings.is_empty() {
             return step;
         }
-        // Number the planned split nodes; mark crossing ends and tips.
+        // Number the planned split nodes; the triangles around the crossings and tips.
         self.number_splits(body);
+        self.select_candidates(body, tool, stamp, 0);
         // 2. Templates, with quality splits, up to three rounds.
         for _round in 0..QUALITY_ROUNDS {
             self.collect_affected(body, tool, stamp, &quad);
+            let before = self.crossings.len();
             if !self.add_quality_splits(body) {
                 break;
             }
+            self.select_candidates(body, tool, stamp, before);
             self.number_splits(body);
         }
         self.collect_affected(body, tool, stamp, &quad);
@@ -571,6 +583,38 @@ impl Cutter {
             .map(|k| k as u16)
     }
 
+    /// The triangles a step may touch: those with a corner at a crossing's end or at a tip of
+    /// `tool`, in index order. With `from` > 0, only crossings from `from` on are new (quality
+    /// splits): the selection is made again only if one of them lies outside it (an edge none of
+    /// whose ends was near: the triangle across it could be missing).
+    fn select_candidates(&mut self, body: &Body, tool: usize, stamp: u32, from: usize) {
+        let mut grew = from == 0;
+        for c in &self.crossings[from..] {
+            let (a, b) = (c.a as usize, c.b as usize);
+            if self.near_stamp[a] != stamp && self.near_stamp[b] != stamp {
+                grew = true;
+            }
+            self.near_stamp[a] = stamp;
+            self.near_stamp[b] = stamp;
+        }
+        if !grew {
+            return;
+        }
+        if let Some(tips) = self.tips.get(tool) {
+            for &v in &tips.nodes[..tips.len] {
+                if let Some(mark) = self.near_stamp.get_mut(v as usize) {
+                    *mark = stamp;
+                }
+            }
+        }
+        self.candidates.clear();
+        for (index, t) in body.surface.triangles.iter().enumerate() {
+            if t.iter().any(|&v| self.near_stamp[v as usize] == stamp) {
+                self.candidates.push(index as u32);
+            }
+        }
+    }
+
     /// Finds the triangles with a crossing (or a tip of `tool`) and decides their templates and path.
     fn collect_affected(&mut self, body: &Body, tool: usize, stamp: u32, quad: &[Vec3; 4]) {
         for c in &self.crossings {
@@ -580,7 +624,9 @@ impl Cutter {
         let tips = self.tips.get(tool).cloned().unwrap_or_default();
         self.affected.clear();
         let n = body.node_count();
-        for (index, t) in body.surface.triangles.iter().enumerate() {
+        for ci in 0..self.candidates.len() {
+            let index = self.candidates[ci] as usize;
+            let t = &body.surface.triangles[index];
             let marked = t
                 .iter()
                 .filter(|&&v| self.node_stamp[v as usize] == stamp)

@@ -9,6 +9,9 @@
 //!   process, and prints the ratio.
 //! * `scaling`: one step of an icosphere on a table from 162 to 40 962 nodes, with and without a probe
 //!   pressed into it, per stage, with the fitted log-log slope.
+//! * `cut`: a 10 cm incision drawn in 1 s across a 2 562-node organ: tick distribution during the cut
+//!   against the same scene with the blade passing above the organ, the cost of one incision step,
+//!   and the cost of a transection (the tube of `scenes/transection.toml` cut through).
 
 #[path = "../common/plot.rs"]
 mod plot;
@@ -40,6 +43,9 @@ enum Cmd {
     Latency(LatencyArgs),
     /// Step time against node count, per stage, with and without a probe in contact.
     Scaling(ScalingArgs),
+    /// Tick time while a blade cuts a 2 562-node organ, against no cut; incision step and
+    /// transection costs.
+    Cut(CutArgs),
     /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
     /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
     #[command(hide = true)]
@@ -85,10 +91,27 @@ struct ScalingArgs {
     quick: bool,
 }
 
+#[derive(Args)]
+struct CutArgs {
+    /// Output directory.
+    #[arg(long, default_value = "bench-out")]
+    out: PathBuf,
+    /// One repetition instead of five: a smoke test for CI.
+    #[arg(long)]
+    quick: bool,
+    /// The organ's integrator (`symplectic`, `multirate`, `implicit`).
+    #[arg(long, default_value = "multirate")]
+    integrator: String,
+    /// The organ's surface mass (kg).
+    #[arg(long, default_value_t = 1.2, value_parser = palpa::daemon::values::positive)]
+    surface_mass: f64,
+}
+
 fn main() -> Result<()> {
     match Cli::parse().command {
         Cmd::Latency(args) => latency(args),
         Cmd::Scaling(args) => scaling(args),
+        Cmd::Cut(args) => cut(args),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
@@ -652,6 +675,309 @@ fn scaling(args: ScalingArgs) -> Result<()> {
            CCD (none here, one body); commit = positions and rigid component; guard = divergence guard.\n\n\
            ![scaling](scaling.svg)\n";
     std::fs::write(args.out.join("scaling.md"), &md)?;
+    println!("{md}");
+    Ok(())
+}
+
+/// The incision bench's scene: the incision scene's organ at 2 562 nodes on a table, and a scalpel
+/// that dips 2.5 cm into its top during the first half second, is drawn 10 cm along x in the next
+/// second and lifts off. With `cut` false the blade follows the same path 6 cm higher, above the
+/// organ: the same scene and systems, no cut.
+fn incision_world(args: &CutArgs, cut: bool) -> World {
+    let lift = if cut { 0.0 } else { 0.06 };
+    let (high, low, off) = (0.10 + lift, 0.055 + lift, 0.12 + lift);
+    let (integrator, surface_mass) = (&args.integrator, args.surface_mass);
+    let text = format!(
+        r#"
+        [world]
+        gravity = [0.0, 0.0, -9.81]
+        integrator = "{integrator}"
+        [[body]]
+        name = "organ"
+        mesh = {{ ellipsoid = {{ radii = [0.08, 0.05, 0.04], subdivisions = 4 }} }}
+        position = [0.0, 0.0, 0.04]
+        surface_mass = {surface_mass}
+        rigid_mass = 1.0
+        surface_stiffness = 40.0
+        surface_damping = 0.02
+        link_stiffness = 30.0
+        link_damping = 0.08
+        friction = 0.3
+        cutting = {{ prestress = 0.1 }}
+        [[obstacle]]
+        name = "table"
+        plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+        friction = 0.5
+        static_friction = 0.7
+        [[tool]]
+        name = "scalpel"
+        shape = {{ blade = {{ length = 0.03, thickness = 0.0005 }} }}
+        input = "script"
+        script = [
+          {{ t = 0.0, position = [-0.05, 0.001, {high}] }},
+          {{ t = 0.5, position = [-0.05, 0.001, {low}] }},
+          {{ t = 1.5, position = [0.05, 0.001, {low}] }},
+          {{ t = 2.0, position = [0.05, 0.001, {off}] }},
+        ]
+        "#
+    );
+    let scene = palpa::scene::parse_scene(&text, "incision_bench.toml", Path::new("."))
+        .expect("the incision bench scene is valid");
+    World::from_scene(&scene)
+}
+
+/// Ticks the bench runs: through the descent, the 1 s draw and the lift-off.
+const CUT_TICKS: usize = 2000;
+/// The draw: ticks 500 to 1 500 (t = 0.5 s to 1.5 s).
+const DRAW: std::ops::Range<usize> = 500..1500;
+
+/// Tick times (µs) of one run, and per tick the time in the cut stage (µs) and whether it cut.
+struct CutRun {
+    ticks: Vec<f64>,
+    cut_stage: Vec<f64>,
+    cut: Vec<bool>,
+    boundary_edges: u32,
+    profile: StepProfile,
+}
+
+fn run_incision(args: &CutArgs, cut: bool) -> CutRun {
+    let mut world = incision_world(args, cut);
+    let mut profile = StepProfile::default();
+    let mut run = CutRun {
+        ticks: Vec::with_capacity(CUT_TICKS),
+        cut_stage: Vec::with_capacity(CUT_TICKS),
+        cut: Vec::with_capacity(CUT_TICKS),
+        boundary_edges: 0,
+        profile: StepProfile::default(),
+    };
+    for _ in 0..CUT_TICKS {
+        let before = profile.seconds[Stage::Cut as usize];
+        let start = Instant::now();
+        world.step_profiled(&mut profile);
+        run.ticks.push(start.elapsed().as_secs_f64() * 1e6);
+        run.cut_stage
+            .push((profile.seconds[Stage::Cut as usize] - before) * 1e6);
+        run.cut.push(world.counters.cuts > 0);
+    }
+    run.boundary_edges =
+        palpa::topology::cut::count_boundary_edges(&world.bodies[0].surface.triangles);
+    run.profile = profile;
+    run
+}
+
+/// Time of the transection stage (µs) and of the whole tick on the tick `scenes/transection.toml`'s
+/// tube is cut through, with that tick's number and the bodies after it.
+fn run_transection() -> Result<(f64, f64, u64, usize)> {
+    let text = include_str!("../../scenes/transection.toml");
+    let scene = palpa::scene::parse_scene(text, "transection.toml", Path::new("."))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut world = World::from_scene(&scene);
+    let mut profile = StepProfile::default();
+    for _ in 0..2000 {
+        let before = profile.seconds[Stage::Transection as usize];
+        let start = Instant::now();
+        world.step_profiled(&mut profile);
+        let tick = start.elapsed().as_secs_f64() * 1e6;
+        if world.counters.transections > 0 {
+            let stage = (profile.seconds[Stage::Transection as usize] - before) * 1e6;
+            return Ok((stage, tick, world.tick, world.bodies.len()));
+        }
+    }
+    bail!("the transection scene's tube was not cut through in 2 s")
+}
+
+fn spread_of(mut values: Vec<f64>) -> serde_json::Value {
+    values.sort_by(f64::total_cmp);
+    let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
+    json!({
+        "samples": values.len(),
+        "mean_us": mean,
+        "p50_us": percentile(&values, 0.5),
+        "p99_us": percentile(&values, 0.99),
+        "p999_us": percentile(&values, 0.999),
+        "max_us": values.last().copied().unwrap_or(f64::NAN),
+    })
+}
+
+fn cut(args: CutArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let reps = if args.quick { 1 } else { 5 };
+    let mut progress = Progress::new("cut", 3 * reps);
+    let (mut with_cut, mut without) = (Vec::new(), Vec::new());
+    let (mut step_costs, mut whole_run_max) = (Vec::new(), [0.0f64; 2]);
+    let mut boundary_edges = 0;
+    let mut cut_ticks = 0;
+    let mut transections = Vec::new();
+    let mut transection_ticks = Vec::new();
+    let mut transection_at = (0, 0);
+    let mut stages = [StepProfile::default(), StepProfile::default()];
+    for rep in 0..reps {
+        // Alternate the order, so neither variant always runs on a warmer machine.
+        for cut in if rep % 2 == 0 {
+            [true, false]
+        } else {
+            [false, true]
+        } {
+            let run = run_incision(&args, cut);
+            let slot = &mut stages[usize::from(!cut)];
+            for (sum, s) in slot.seconds.iter_mut().zip(run.profile.seconds) {
+                *sum += s;
+            }
+            slot.steps += run.profile.steps;
+            let max = run.ticks.iter().copied().fold(0.0, f64::max);
+            if cut {
+                with_cut.extend_from_slice(&run.ticks[DRAW]);
+                whole_run_max[0] = whole_run_max[0].max(max);
+                step_costs.extend(
+                    run.cut_stage
+                        .iter()
+                        .zip(&run.cut)
+                        .filter(|(_, c)| **c)
+                        .map(|(t, _)| *t),
+                );
+                cut_ticks = run.cut.iter().filter(|c| **c).count();
+                boundary_edges = run.boundary_edges;
+            } else {
+                if run.cut.iter().any(|c| *c) {
+                    bail!("the blade above the organ cut it");
+                }
+                without.extend_from_slice(&run.ticks[DRAW]);
+                whole_run_max[1] = whole_run_max[1].max(max);
+            }
+            progress.step(if cut { "incision" } else { "no cut" });
+        }
+        let (stage, tick, at, bodies) = run_transection()?;
+        transections.push(stage);
+        transection_ticks.push(tick);
+        transection_at = (at, bodies);
+        progress.step("transection");
+    }
+    if boundary_edges == 0 {
+        bail!("the incision opened nothing");
+    }
+    let command = format!(
+        "palpa-bench cut{} --out {}",
+        if args.quick { " --quick" } else { "" },
+        args.out.display()
+    );
+    let cut_spread = spread_of(with_cut.clone());
+    let plain_spread = spread_of(without.clone());
+    let result = json!({
+        "command": command,
+        "date": today(),
+        "machine": machine(),
+        "integrator": args.integrator,
+        "surface_mass": args.surface_mass,
+        "nodes": incision_world(&args, true).bodies[0].node_count(),
+        "repetitions": reps,
+        "draw_ticks": DRAW.len(),
+        "with_cut": cut_spread,
+        "without_cut": plain_spread,
+        "max_whole_run_us": { "with_cut": whole_run_max[0], "without_cut": whole_run_max[1] },
+        "cut_ticks_per_run": cut_ticks,
+        "boundary_edges": boundary_edges,
+        "incision_step": spread_of(step_costs),
+        "transection": {
+            "tick": transection_at.0,
+            "bodies_after": transection_at.1,
+            "stage": spread_of(transections),
+            "whole_tick": spread_of(transection_ticks),
+        },
+        "goal_p999_us": 500.0,
+        "stages_mean_us": stages.iter().zip(["with_cut", "without_cut"]).map(|(p, name)| {
+            (name.to_string(), json!(Stage::ALL
+                .iter()
+                .map(|&s| (s.name().to_string(), json!(p.mean(s) * 1e6)))
+                .collect::<serde_json::Map<String, serde_json::Value>>()))
+        }).collect::<serde_json::Map<String, serde_json::Value>>(),
+    });
+    std::fs::write(
+        args.out.join("cut.json"),
+        serde_json::to_string_pretty(&result)?,
+    )?;
+    // Both tick distributions over the draw, on one pair of histograms.
+    let hi = with_cut
+        .iter()
+        .chain(&without)
+        .copied()
+        .fold(0.0f64, f64::max)
+        .max(1.0);
+    let bins = 60;
+    let width = hi / bins as f64;
+    for (name, values) in [("cut_ticks.svg", &with_cut), ("no_cut_ticks.svg", &without)] {
+        let mut counts = vec![0u64; bins];
+        for v in values {
+            counts[((v / width) as usize).min(bins - 1)] += 1;
+        }
+        let bars: Vec<(f64, f64, u64)> = counts
+            .iter()
+            .enumerate()
+            .map(|(k, &n)| (k as f64 * width, (k + 1) as f64 * width, n))
+            .collect();
+        histogram(
+            &args.out.join(name),
+            if name.starts_with("cut") {
+                "Tick time while the blade draws a 10 cm cut (2 562 nodes)"
+            } else {
+                "Tick time, same scene, blade above the organ"
+            },
+            "tick time (µs)",
+            &bars,
+        )
+        .map_err(|e| anyhow::anyhow!(e))?;
+    }
+    let row = |name: &str, v: &serde_json::Value| {
+        format!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            v["samples"],
+            v["mean_us"].as_f64().unwrap_or(f64::NAN),
+            v["p50_us"].as_f64().unwrap_or(f64::NAN),
+            v["p99_us"].as_f64().unwrap_or(f64::NAN),
+            v["p999_us"].as_f64().unwrap_or(f64::NAN),
+            v["max_us"].as_f64().unwrap_or(f64::NAN),
+        )
+    };
+    let mut md = format!(
+        "# palpa-bench cut\n\n`{command}` — {} — {}\n\n\
+         A scalpel draws a 10 cm incision in 1 s across the top of a {}-node organ (multi-rate \
+         integrator, prestress 0.1, one thread); {reps} run(s) of each variant, ticks of the draw \
+         (t = 0.5 s to 1.5 s) pooled. *No cut*: the same scene with the blade 6 cm higher. \
+         The cut opened {boundary_edges} boundary edges on {cut_ticks} cutting ticks per run. \
+         Goal: p99.9 ≤ 500 µs during the cut.\n\n\
+         | ticks | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+        result["date"].as_str().unwrap_or(""),
+        result["machine"].as_str().unwrap_or(""),
+        result["nodes"],
+    );
+    md += &row("with the cut", &result["with_cut"]);
+    md += &row("no cut", &result["without_cut"]);
+    md += &row("incision step (cut stage)", &result["incision_step"]);
+    md += &row(
+        "transection stage (434-node tube)",
+        &result["transection"]["stage"],
+    );
+    md += &row(
+        "transection tick (whole)",
+        &result["transection"]["whole_tick"],
+    );
+    md += &format!(
+        "\nLargest tick over the whole run (descent, draw, lift-off): {:.1} µs with the cut, \
+         {:.1} µs without. The transection happens at tick {} of `scenes/transection.toml`.\n\n\
+         Mean µs per tick and stage over the whole runs:\n\n| stage | with the cut | no cut |\n| --- | --- | --- |\n",
+        whole_run_max[0], whole_run_max[1], transection_at.0
+    );
+    for s in Stage::ALL {
+        md += &format!(
+            "| {} | {:.1} | {:.1} |\n",
+            s.name(),
+            stages[0].mean(s) * 1e6,
+            stages[1].mean(s) * 1e6
+        );
+    }
+    md += "\n![with the cut](cut_ticks.svg)\n![no cut](no_cut_ticks.svg)\n";
+    std::fs::write(args.out.join("cut.md"), &md)?;
     println!("{md}");
     Ok(())
 }
