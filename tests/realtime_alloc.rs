@@ -151,3 +151,37 @@ fn stiff_rigid_coupling_allocates_nothing_on_the_tick() {
         );
     }
 }
+
+#[test]
+fn cutting_and_transection_allocate_nothing_on_the_tick() {
+    // incision.toml: the blade cuts from about 0.3 s to 1.5 s, the probe then refines the body on a
+    // lip; transection.toml: the tube is cut through at tick 1138 and its halves become two bodies
+    // (the second from the spares reserved up front).
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for (file, ticks) in [
+        ("scenes/incision.toml", 4000),
+        ("scenes/transection.toml", 2000),
+    ] {
+        let scene = load_scene(&common::repo_root().join(file)).unwrap();
+        let mut world = World::from_scene(&scene);
+        for _ in 0..10 {
+            world.step();
+        }
+        ALLOCATIONS.store(0, Ordering::SeqCst);
+        set_counting(true);
+        let (mut cuts, mut transections) = (0, 0);
+        for _ in 0..ticks {
+            world.step();
+            cuts += world.counters.cuts;
+            transections += world.counters.transections;
+        }
+        set_counting(false);
+        let count = ALLOCATIONS.load(Ordering::SeqCst);
+        assert!(cuts > 10, "{file}: the blade cut ({cuts} cutting ticks)");
+        if file.contains("transection") {
+            assert_eq!(transections, 1, "{file}: the tube was cut through");
+            assert_eq!(world.bodies.len(), 2);
+        }
+        assert_eq!(count, 0, "{file}: {count} allocations in {ticks} steps");
+    }
+}
