@@ -24,7 +24,7 @@ use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
 use crate::contact::obstacle::{point_contact_plane, resolve_point};
 use crate::contact::tool::NO_TOOL;
-use crate::dynamics::stability::{node_bounds_into, rigid_bounds, rigid_bounds_over, stable_at};
+use crate::dynamics::stability::{node_bounds_into, rigid_bounds, stable_at};
 
 /// Largest number of halvings of the step.
 pub const MAX_LEVEL: u32 = 12;
@@ -142,33 +142,28 @@ impl Multirate {
             }
             self.level.push(level);
         }
-        // The rigid component against the surface on all its links (and its air), within the explicit
-        // limit; and the part of that coupling that goes through sub-stepped nodes, met only once per
-        // step, within about half of it (scenes/stress/stiff.toml, every node sub-stepped, diverged
-        // at ω·Δt = 1.39 of 1.98). Otherwise the rigid component joins the substeps. (A few light
-        // nodes a cut or a subdivision made carry little of the coupling: they leave the rigid
-        // component at the step.)
+        // The rigid component against the surface on all its links (and its air). Met once per step
+        // by sub-stepped nodes, the exchange is explicit and holds only to about half the explicit
+        // limit (scenes/stress/stiff.toml diverged at ω·Δt = 1.39 of 1.98): then the rigid
+        // component joins the substeps.
         let mut rigid_level = 0;
         if !body.rigid.fixed {
-            let all = rigid_bounds(body);
-            let level = &self.level;
-            let through_fast = (level_max > 0).then(|| rigid_bounds_over(body, |i| level[i] > 0));
-            let stable = |bounds: &[(f64, f64, f64); 2], halvings: u32, safety: f64| {
-                bounds.iter().all(|&(stiffness, damping, inverse_mass)| {
+            let bounds = rigid_bounds(body);
+            let safety = if level_max > 0 {
+                EXCHANGE_SAFETY
+            } else {
+                SAFETY
+            };
+            while rigid_level < MAX_LEVEL
+                && !bounds.iter().all(|&(stiffness, damping, inverse_mass)| {
                     stable_at(
                         stiffness,
                         damping,
                         inverse_mass,
-                        dt / (1u32 << halvings) as f64,
+                        dt / (1u32 << rigid_level) as f64,
                         safety,
                     )
                 })
-            };
-            while rigid_level < MAX_LEVEL
-                && !(stable(&all, rigid_level, SAFETY)
-                    && through_fast
-                        .as_ref()
-                        .is_none_or(|b| stable(b, rigid_level, EXCHANGE_SAFETY)))
             {
                 rigid_level += 1;
             }

@@ -77,12 +77,6 @@ pub fn node_bounds_into(body: &Body, stiffness: &mut Vec<f64>, damping: &mut Vec
 ///
 /// With M = m_s this is the Gershgorin bound 2 Σ k / M of the rigid component's row.
 pub fn rigid_bounds(body: &Body) -> [(f64, f64, f64); 2] {
-    rigid_bounds_over(body, |_| true)
-}
-
-/// [`rigid_bounds`] with the links of the nodes `linked` keeps only (the masses and inertias stay
-/// those of the whole surface): the part of the rigid component's coupling that goes through them.
-pub fn rigid_bounds_over(body: &Body, linked: impl Fn(usize) -> bool) -> [(f64, f64, f64); 2] {
     let s = &body.surface;
     let r = &body.rigid;
     let (mut k, mut c, mut k_turn, mut c_turn) = (0.0, 0.0, 0.0, 0.0);
@@ -91,12 +85,10 @@ pub fn rigid_bounds_over(body: &Body, linked: impl Fn(usize) -> bool) -> [(f64, 
     for i in 0..s.mass.len() {
         let arm = s.homologue_in_body[i];
         let arm2 = arm.norm_squared();
-        if linked(i) {
-            k += s.link_stiffness[i];
-            c += s.link_damping[i];
-            k_turn += s.link_stiffness[i] * arm2;
-            c_turn += s.link_damping[i] * arm2;
-        }
+        k += s.link_stiffness[i];
+        c += s.link_damping[i];
+        k_turn += s.link_stiffness[i] * arm2;
+        c_turn += s.link_damping[i] * arm2;
         surface_mass += s.mass[i];
         surface_inertia +=
             (nalgebra::Matrix3::identity() * arm2 - arm * arm.transpose()) * s.mass[i];
