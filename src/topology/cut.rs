@@ -585,20 +585,21 @@ impl Cutter {
 
     /// The triangles a step may touch: those with a corner at a crossing's end or at a tip of
     /// `tool`, in index order. With `from` > 0, only crossings from `from` on are new (quality
-    /// splits): the selection is made again only if one of them lies outside it (an edge none of
-    /// whose ends was near: the triangle across it could be missing).
+    /// splits, on edges of affected triangles): the selection is made again only if one of them
+    /// has neither end in it (the triangle across it could be missing).
     fn select_candidates(&mut self, body: &Body, tool: usize, stamp: u32, from: usize) {
-        let mut grew = from == 0;
-        for c in &self.crossings[from..] {
-            let (a, b) = (c.a as usize, c.b as usize);
-            if self.near_stamp[a] != stamp && self.near_stamp[b] != stamp {
-                grew = true;
-            }
-            self.near_stamp[a] = stamp;
-            self.near_stamp[b] = stamp;
-        }
+        // The marks are those of the last selection (a mark set between selections would let a
+        // second new crossing through on the first one's mark).
+        let grew = from == 0
+            || self.crossings[from..].iter().any(|c| {
+                self.near_stamp[c.a as usize] != stamp && self.near_stamp[c.b as usize] != stamp
+            });
         if !grew {
             return;
+        }
+        for c in &self.crossings {
+            self.near_stamp[c.a as usize] = stamp;
+            self.near_stamp[c.b as usize] = stamp;
         }
         if let Some(tips) = self.tips.get(tool) {
             for &v in &tips.nodes[..tips.len] {
