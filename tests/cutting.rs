@@ -346,14 +346,33 @@ fn a_cutting_session_is_deterministic_and_replays_bit_for_bit() {
     // A transection mid-session: the new body's messages are verified too, and its rows appear.
     let trace = session_is_deterministic_and_replays("transection", "1.5");
     assert!(trace.contains(",tube.1,"), "no rows for the new body");
+    // The same with another organ on the table: on the display tick after the transection, the two
+    // pieces send keyframes while the organ sends a delta (a replay that took the keyframes for a
+    // display's request would send the organ a keyframe too).
+    let trace = session_is_deterministic_and_replays("transection_beside_an_organ", "1.5");
+    assert!(trace.contains(",tube.1,") && trace.contains(",organ,"));
 }
 
-/// Runs `scenes/<name>.toml` twice with a trace and a recording; asserts identical traces, a
-/// boundary, and `palpa-replay --verify` OK. Returns the trace.
+/// Runs `scenes/<name>.toml` (or a variant written here) twice with a trace and a recording;
+/// asserts identical traces, a boundary, and `palpa-replay --verify` OK. Returns the trace.
 fn session_is_deterministic_and_replays(name: &str, duration: &str) -> String {
     let dir = std::env::temp_dir().join(format!("palpa_cut_record_{name}_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let scene = common::repo_root().join(format!("scenes/{name}.toml"));
+    let mut scene = common::repo_root().join(format!("scenes/{name}.toml"));
+    if name == "transection_beside_an_organ" {
+        let text = std::fs::read_to_string(common::repo_root().join("scenes/transection.toml"))
+            .unwrap()
+            + r#"
+[[body]]
+name = "organ"
+mesh = { icosphere = { radius = 0.02, subdivisions = 2 } }
+position = [0.1, 0.0, 0.021]
+surface_mass = 0.05
+rigid_mass = 0.1
+"#;
+        scene = dir.join(format!("{name}.toml"));
+        std::fs::write(&scene, text).unwrap();
+    }
     let mut traces = Vec::new();
     for run in 0..2 {
         let trace = dir.join(format!("trace{run}.csv"));

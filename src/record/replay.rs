@@ -432,10 +432,23 @@ pub fn verify(
      -> Result<(), VerifyError> {
         let tick = world.tick;
         let mut mesh_produced: Vec<(bool, Vec<u8>)> = Vec::new();
-        let wants_keyframe = outputs[*next..]
+        // A keyframe request (a display connecting) gives every body a keyframe; a body whose
+        // topology changed, or a body a transection made, gets one of its own. Only the first is
+        // replayed as a request: when every body has a recorded keyframe at this tick.
+        let mut keyframed = 0u64;
+        let mut keyframes = 0usize;
+        for m in outputs[*next..]
             .iter()
             .take_while(|m| tick_of(m) == tick)
-            .any(|m| m.topic == "/palpa/mesh/keyframe");
+            .filter(|m| m.topic == "/palpa/mesh/keyframe")
+        {
+            let body = proto::MeshKeyframe::decode(m.data.as_slice()).map_or(u32::MAX, |k| k.body);
+            if body < 64 && keyframed & (1 << body) == 0 {
+                keyframed |= 1 << body;
+                keyframes += 1;
+            }
+        }
+        let wants_keyframe = keyframes > 0 && keyframes >= world.bodies.len().min(64);
         if wants_keyframe {
             meshes.request_keyframe();
         }
@@ -497,6 +510,16 @@ pub fn verify(
                     replayed,
                 }));
             }
+        }
+        // The replay sent no mesh message the recording lacks.
+        if mesh_cursor < mesh_produced.len() {
+            return Err(VerifyError::Differs(Difference {
+                tick,
+                channel: "/palpa/mesh".into(),
+                field: "messages".into(),
+                recorded: mesh_cursor.to_string(),
+                replayed: mesh_produced.len().to_string(),
+            }));
         }
         Ok(())
     };
