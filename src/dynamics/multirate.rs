@@ -346,15 +346,9 @@ impl Multirate {
                         }
                         l => (self.x[l as usize], self.v[l as usize]),
                     };
-                    let d = xj - x;
-                    let length = d.norm();
-                    if length <= f64::MIN_POSITIVE {
-                        continue;
+                    if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
+                        force += pull;
                     }
-                    let inverse_length = 1.0 / length;
-                    let magnitude = e.stiffness[edge] * (length - e.rest_length[edge])
-                        + e.damping[edge] * (vj - v).dot(&d) * inverse_length;
-                    force += d * (magnitude * inverse_length);
                 }
                 self.f[k] = force;
             }
@@ -436,15 +430,10 @@ impl Multirate {
             }
             for k in 0..e.len() {
                 let (a, b) = (e.a[k] as usize, e.b[k] as usize);
-                let d = self.x[b] - self.x[a];
-                let length = d.norm();
-                if length <= f64::MIN_POSITIVE {
+                let Some(force) = spring_pull(e, k, &self.x[a], &self.v[a], &self.x[b], &self.v[b])
+                else {
                     continue;
-                }
-                let inverse_length = 1.0 / length;
-                let magnitude = e.stiffness[k] * (length - e.rest_length[k])
-                    + e.damping[k] * (self.v[b] - self.v[a]).dot(&d) * inverse_length;
-                let force = d * (magnitude * inverse_length);
+                };
                 self.f[a] += force;
                 self.f[b] -= force;
             }
@@ -564,15 +553,9 @@ impl Multirate {
                     a + (b - a) * phase
                 };
                 let vj = self.v[j];
-                let d = xj - x;
-                let length = d.norm();
-                if length <= f64::MIN_POSITIVE {
-                    continue;
+                if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
+                    force += pull;
                 }
-                let inverse_length = 1.0 / length;
-                let magnitude = e.stiffness[edge] * (length - e.rest_length[edge])
-                    + e.damping[edge] * (vj - v).dot(&d) * inverse_length;
-                force += d * (magnitude * inverse_length);
             }
             self.deep_force[k] = force;
         }
@@ -600,6 +583,28 @@ impl Multirate {
             }
         }
     }
+}
+
+/// The force spring `edge` puts on its end at `x` (velocity `v`) from its other end at `xj` (`vj`);
+/// `None` for coincident ends.
+#[inline(always)]
+fn spring_pull(
+    e: &crate::body::Edges,
+    edge: usize,
+    x: &Vec3,
+    v: &Vec3,
+    xj: &Vec3,
+    vj: &Vec3,
+) -> Option<Vec3> {
+    let d = xj - x;
+    let length = d.norm();
+    if length <= f64::MIN_POSITIVE {
+        return None;
+    }
+    let inverse_length = 1.0 / length;
+    let magnitude = e.stiffness[edge] * (length - e.rest_length[edge])
+        + e.damping[edge] * (vj - v).dot(&d) * inverse_length;
+    Some(d * (magnitude * inverse_length))
 }
 
 /// Backward Euler on the rigid component's velocity and angular velocity alone, the nodes taken at
