@@ -160,8 +160,13 @@ fn straight_incision_follows_the_blade() {
     );
     assert!(cutter.counters.opened_edges > 0 && cutter.counters.refused == 0);
     println!(
-        "quality: {} of the created triangles below {}°",
-        cutter.counters.quality_misses, cutter.quality_bound_deg
+        "quality: {} of the {} created triangles below {}°",
+        cutter.counters.quality_misses, cutter.counters.created_triangles, cutter.quality_bound_deg
+    );
+    assert_eq!(
+        cutter.counters.quality_misses, 0,
+        "created triangles below the bound (smallest {:.1}°)",
+        cutter.smallest_created_angle_deg
     );
 }
 
@@ -248,6 +253,7 @@ fn ten_thousand_random_strokes_keep_every_invariant() {
     let mut refused = 0u64;
     let mut smallest: f64 = 180.0;
     let mut misses = 0u64;
+    let mut created = 0u64;
     let mut splits = 0u64;
     let mut round = 0;
     while strokes < 10_000 {
@@ -284,13 +290,14 @@ fn ten_thousand_random_strokes_keep_every_invariant() {
         opened += cutter.counters.opened_edges;
         smallest = smallest.min(cutter.smallest_created_angle_deg);
         misses += cutter.counters.quality_misses;
+        created += cutter.counters.created_triangles;
         splits += cutter.counters.splits;
         round += 1;
     }
     println!(
         "{strokes} strokes, {steps} steps on {round} bodies: {opened} edges opened, {refused} steps \
-         refused (room), smallest created angle {smallest:.1}°, {misses} created triangles below the \
-         bound ({splits} splits)"
+         refused (room), smallest created angle {smallest:.1}°, {misses} of {created} created \
+         triangles below the bound ({splits} splits)"
     );
     assert!(
         opened >= 1000,

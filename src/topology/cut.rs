@@ -12,7 +12,13 @@
 //!    (one split: two children; two: a corner triangle and the better diagonal of the quad; three: four
 //!    children). When the best choice would still leave a child sharper than the quality bound
 //!    (min(`min_angle`, half the smallest angle of the original mesh)), the triangle's remaining edge
-//!    is split at its middle as well, and the choice made again.
+//!    is split at its middle as well, and the choice made again. Before that, a split node whose
+//!    triangles would be too sharp *slides* along its edge (within half the fidelity tolerance of the
+//!    swept quad for a path node; anywhere in the edge's middle 60 % for a quality split): a path
+//!    that cuts a corner off just beyond the snapping distance otherwise leaves a short edge with a
+//!    needle on each side. After the templates, an inner edge of a created triangle still below the
+//!    bound is *flipped* when that raises the smallest angle of its two triangles (never a path or
+//!    boundary edge, never across a crease; the spring takes the new edge's rest length).
 //! 3. **Path.** In each crossed triangle the cut joins its two path points (snapped corners, split
 //!    nodes, and the tip the blade left last tick); that edge of the new mesh is *opened*.
 //! 4. **Opening.** Around every node of an opened edge the triangles are grouped by the edges that stay
@@ -79,7 +85,9 @@ pub struct CutCounters {
     pub opened_edges: u64,
     /// Cut steps refused: the reserved room was used up or too many edges were crossed at once.
     pub refused: u64,
-    /// Triangles created below the quality bound (none expected; counted, never hidden).
+    /// Triangles the cuts created or rewrote (template children, flipped pairs).
+    pub created_triangles: u64,
+    /// Created triangles below the quality bound (counted, never hidden).
     pub quality_misses: u64,
     /// Transections of this body (it separated into bodies).
     pub transections: u64,
@@ -99,6 +107,18 @@ const MAX_FAN: usize = 64;
 const QUALITY_ROUNDS: usize = 4;
 /// Fractions tried for a split made for quality.
 const QUALITY_FRACTIONS: [f64; 5] = [0.5, 0.4, 0.6, 0.33, 0.67];
+/// Most triangles one step creates or rewrites (four children per affected triangle, flips).
+const MAX_CREATED: usize = 20 * MAX_CROSSINGS;
+/// Rounds of edge flips per step.
+const FLIP_ROUNDS: usize = 4;
+/// Least cosine between the rest normals of two triangles whose shared edge may be flipped: no flip
+/// across a crease (it would cut the crease's corner off the shape).
+const FLIP_FLATNESS: f64 = 0.9;
+/// Steps (fractions of the edge) and their count each way when a split slides for quality, and the
+/// range of fractions a split may take.
+const SLIDE_STEP: f64 = 0.04;
+const SLIDE_STEPS: usize = 6;
+const SLIDE_RANGE: (f64, f64) = (0.2, 0.8);
 /// Most tips kept per blade.
 const MAX_TIPS: usize = 8;
 
@@ -222,6 +242,8 @@ pub struct Cutter {
     /// Set when a cut step opened edges: the world then looks for parts.
     pub check_parts: bool,
     copies: Vec<u32>,
+    /// Triangles this step created (template children, and the triangles flips rewrote).
+    created: Vec<u32>,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -323,6 +345,7 @@ impl Cutter {
             pending: Vec::with_capacity(4 * MAX_CROSSINGS),
             fan: Vec::with_capacity(16 * MAX_CROSSINGS),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
+            created: Vec::with_capacity(MAX_CREATED),
             transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
             check_parts: false,
         }
@@ -466,6 +489,9 @@ impl Cutter {
         // 2. Templates, with quality splits, up to three rounds.
         for _round in 0..QUALITY_ROUNDS {
             self.collect_affected(body, tool, stamp, &quad);
+            if self.slide_splits(body, &quad) {
+                self.collect_affected(body, tool, stamp, &quad);
+            }
             let before = self.crossings.len();
             if !self.add_quality_splits(body) {
                 break;
@@ -507,6 +533,7 @@ impl Cutter {
         }
         // Rewrite the triangles.
         let prestress = self.settings.prestress;
+        self.created.clear();
         for i in 0..self.affected.len() {
             let a = self.affected[i];
             self.apply_template(body, &a, prestress);
@@ -520,6 +547,17 @@ impl Cutter {
                 if pair.0 != pair.1 && !self.path_edges.contains(&pair) {
                     self.path_edges.push(pair);
                 }
+            }
+        }
+        // Edge flips where a created triangle is below the quality bound; the figures of quality.
+        self.flip_for_quality(body, prestress);
+        let h = &body.surface.homologue_in_body;
+        for &t in &self.created {
+            let angle = min_angle_deg(&body.surface.triangles[t as usize].map(|v| h[v as usize]));
+            self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
+            self.counters.created_triangles += 1;
+            if angle < self.quality_bound_deg {
+                self.counters.quality_misses += 1;
             }
         }
         self.collect_tips(tool);
@@ -761,6 +799,90 @@ impl Cutter {
             .fold(180.0, f64::min)
     }
 
+    /// The smallest angle of the best template of affected triangle `a` that keeps its path.
+    fn best_template_quality(&self, body: &Body, a: &Affected) -> f64 {
+        let splits = a.crossing.map(|c| {
+            c.and_then(|c| {
+                let c = &self.crossings[c as usize];
+                matches!(c.choice, Choice::Split).then_some(c.node)
+            })
+        });
+        [true, false]
+            .map(|d| {
+                let keeps = a
+                    .path
+                    .is_none_or(|(p, q)| edge_in_template(a.corners, splits, d, p, q));
+                if keeps {
+                    self.template_quality(body, a.corners, splits, d)
+                } else {
+                    -1.0
+                }
+            })
+            .into_iter()
+            .fold(-1.0, f64::max)
+    }
+
+    /// Slides the path's split nodes along their edges, within half the fidelity tolerance of the
+    /// swept quad, where that raises the smallest angle of the templates around them: a path that
+    /// cuts a corner off just beyond the snapping distance leaves a short edge, and moving its ends
+    /// apart is what keeps the triangles on it from being needles. Returns whether any moved.
+    fn slide_splits(&mut self, body: &Body, quad: &[Vec3; 4]) -> bool {
+        let bound = self.quality_bound_deg;
+        let n = body.node_count() as u32;
+        let mut moved = false;
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            if self.best_template_quality(body, &a) >= bound {
+                continue;
+            }
+            for c in a.crossing.iter().flatten().map(|c| *c as usize) {
+                let crossing = self.crossings[c];
+                if !matches!(crossing.choice, Choice::Split) {
+                    continue;
+                }
+                let x = &body.surface.position_in_world;
+                let h = &body.surface.homologue_in_body;
+                let (ia, ib) = (crossing.a as usize, crossing.b as usize);
+                let slot = (crossing.node - n) as usize;
+                let reach = 0.75 * self.tolerance(body.edges.rest_length[crossing.edge as usize]);
+                let quality_at = |cutter: &Self| {
+                    cutter
+                        .affected
+                        .iter()
+                        .filter(|t| t.crossing.contains(&Some(c as u16)))
+                        .map(|t| cutter.best_template_quality(body, t))
+                        .fold(180.0, f64::min)
+                };
+                let mut best = (quality_at(self), crossing.t);
+                for k in 1..=SLIDE_STEPS {
+                    for sign in [-1.0, 1.0] {
+                        let t = crossing.t + sign * k as f64 * SLIDE_STEP;
+                        if !(SLIDE_RANGE.0..=SLIDE_RANGE.1).contains(&t) {
+                            continue;
+                        }
+                        if crossing.on_path
+                            && quad_distance(&(x[ia] * (1.0 - t) + x[ib] * t), quad) > reach
+                        {
+                            continue;
+                        }
+                        self.split_rest[slot] = h[ia] * (1.0 - t) + h[ib] * t;
+                        let q = quality_at(self);
+                        if q > best.0 + 1e-9 {
+                            best = (q, t);
+                        }
+                    }
+                }
+                let t = best.1;
+                self.split_rest[slot] = h[ia] * (1.0 - t) + h[ib] * t;
+                if t != crossing.t {
+                    self.crossings[c].t = t;
+                    moved = true;
+                }
+            }
+        }
+        moved
+    }
+
     /// Adds a middle split on the unsplit edge of every two-split triangle whose best template is
     /// below the quality bound; returns whether any was added.
     fn add_quality_splits(&mut self, body: &Body) -> bool {
@@ -933,20 +1055,112 @@ impl Cutter {
             &mut inner,
         );
         let h = &body.surface.homologue_in_body;
-        for child in &children[..count] {
-            let angle = min_angle_deg(&child.map(|v| h[v as usize]));
-            self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
-            if angle < self.quality_bound_deg {
-                self.counters.quality_misses += 1;
-            }
-        }
         let triangles = &mut body.surface.triangles;
         triangles[a.triangle as usize] = children[0];
-        triangles.extend_from_slice(&children[1..count]);
+        self.created.push(a.triangle);
+        for child in &children[1..count] {
+            self.created.push(triangles.len() as u32);
+            triangles.push(*child);
+        }
         let (k, c) = (body.params.surface_stiffness, body.params.surface_damping);
         for &(u, v) in &inner[..inner_count] {
             let rest = (h[u as usize] - h[v as usize]).norm() * (1.0 - prestress);
             body.edges.push(u, v, rest, k, c);
+        }
+    }
+
+    /// Flips inner edges (not on the path, not on a boundary, not across a crease) of the created
+    /// triangles below the quality bound when the flip raises the smallest angle of the two
+    /// triangles sharing the edge; the flipped spring takes the new edge's rest length. A few rounds.
+    fn flip_for_quality(&mut self, body: &mut Body, prestress: f64) {
+        let bound = self.quality_bound_deg;
+        for _round in 0..FLIP_ROUNDS {
+            let mut flipped = false;
+            for i in 0..self.created.len() {
+                let index = self.created[i] as usize;
+                let t = body.surface.triangles[index];
+                let h = &body.surface.homologue_in_body;
+                let rest = |v: u32| h[v as usize];
+                let quality = min_angle_deg(&t.map(rest));
+                if quality >= bound {
+                    continue;
+                }
+                // The best flip among the triangle's three edges: (new quality, edge, neighbour, w).
+                let mut best: Option<(f64, usize, usize, u32)> = None;
+                for k in 0..3 {
+                    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    if self.path_edges.contains(&(a.min(b), a.max(b))) {
+                        continue;
+                    }
+                    let triangles = &body.surface.triangles;
+                    let Some(n) = triangles
+                        .iter()
+                        .position(|u| (0..3).any(|j| u[j] == b && u[(j + 1) % 3] == a))
+                    else {
+                        continue;
+                    };
+                    let u = triangles[n];
+                    let w = u.iter().copied().find(|&v| v != a && v != b).unwrap_or(a);
+                    if w == a
+                        || w == c
+                        || triangles.iter().any(|u| u.contains(&c) && u.contains(&w))
+                    {
+                        continue;
+                    }
+                    let normal = |tri: [u32; 3]| {
+                        let [p, q, r] = tri.map(rest);
+                        (q - p).cross(&(r - p)).normalize()
+                    };
+                    let (old_t, old_n) = (normal(t), normal(u));
+                    let (new_1, new_2) = ([a, w, c], [w, b, c]);
+                    let (n1, n2) = (normal(new_1), normal(new_2));
+                    // Normals that agree (a degenerate triangle's NaN normal agrees with nothing).
+                    let agree = [
+                        old_t.dot(&old_n) - FLIP_FLATNESS,
+                        n1.dot(&n2),
+                        n1.dot(&old_t),
+                        n1.dot(&old_n),
+                        n2.dot(&old_t),
+                        n2.dot(&old_n),
+                    ];
+                    if agree.iter().any(|d| d.is_nan() || *d <= 0.0) {
+                        continue;
+                    }
+                    let before = quality.min(min_angle_deg(&u.map(rest)));
+                    let after =
+                        min_angle_deg(&new_1.map(rest)).min(min_angle_deg(&new_2.map(rest)));
+                    if after > before + 1e-9 && best.is_none_or(|(q, ..)| after > q) {
+                        best = Some((after, k, n, w));
+                    }
+                }
+                let Some((_, k, n, w)) = best else {
+                    continue;
+                };
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let Some(edge) = find_edge(body, a, b) else {
+                    continue;
+                };
+                let h = &body.surface.homologue_in_body;
+                let length = (h[c as usize] - h[w as usize]).norm() * (1.0 - prestress);
+                let (stiffness, damping) =
+                    (body.params.surface_stiffness, body.params.surface_damping);
+                let e = &mut body.edges;
+                e.a[edge] = c.min(w);
+                e.b[edge] = c.max(w);
+                e.rest_length[edge] = length;
+                e.stiffness[edge] = stiffness;
+                e.damping[edge] = damping;
+                let triangles = &mut body.surface.triangles;
+                triangles[index] = [a, w, c];
+                triangles[n] = [w, b, c];
+                if !self.created.contains(&(n as u32)) && self.created.len() < MAX_CREATED {
+                    self.created.push(n as u32);
+                }
+                flipped = true;
+            }
+            if !flipped {
+                break;
+            }
         }
     }
 
