@@ -13,7 +13,7 @@
 //!    children). When the best choice would still leave a child sharper than the quality bound
 //!    (min(`min_angle`, half the smallest angle of the original mesh)), the triangle's remaining edge
 //!    is split at its middle as well, and the choice made again. Before that, a split node whose
-//!    triangles would be too sharp *slides* along its edge (within half the fidelity tolerance of the
+//!    triangles would be too sharp *slides* along its edge (within ¾ of the fidelity tolerance of the
 //!    swept quad for a path node; anywhere in the edge's middle 60 % for a quality split): a path
 //!    that cuts a corner off just beyond the snapping distance otherwise leaves a short edge with a
 //!    needle on each side. After the templates, an inner edge of a created triangle still below the
@@ -822,7 +822,7 @@ impl Cutter {
             .fold(-1.0, f64::max)
     }
 
-    /// Slides the path's split nodes along their edges, within half the fidelity tolerance of the
+    /// Slides the path's split nodes along their edges, within ¾ of the fidelity tolerance of the
     /// swept quad, where that raises the smallest angle of the templates around them: a path that
     /// cuts a corner off just beyond the snapping distance leaves a short edge, and moving its ends
     /// apart is what keeps the triangles on it from being needles. Returns whether any moved.
