@@ -12,8 +12,8 @@ use crate::collision::obstacle::Obstacle;
 use crate::contact::bodies::{BodyContactCounters, BodyContactScratch, resolve_body_collisions};
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
-    capture_among, capture_broad_phase, face_broad_phase, face_contacts_among, hold_contact_nodes,
-    push_out_of_tools,
+    capture_among, capture_broad_phase, face_broad_phase, face_contacts_among, grasp_nodes,
+    hold_contact_nodes, jaws_touch, push_out_of_tools, release_nodes,
 };
 use crate::dynamics::Integrator;
 use crate::dynamics::forces::accumulate_body_forces;
@@ -118,6 +118,10 @@ pub struct StepCounters {
     pub transections: u32,
     /// Transections left undone this step: no spare body left (the parts stay in one body).
     pub transections_refused: u32,
+    /// Nodes graspers took into their jaws this step.
+    pub grasped: u32,
+    /// Nodes graspers let go this step.
+    pub released: u32,
 }
 
 /// Everything simulated, and the step.
@@ -418,7 +422,11 @@ impl World {
         world.tools = scene
             .tools
             .iter()
-            .map(|t| Tool::new(&t.name, t.shape.clone(), t.input.clone(), t.max_force))
+            .map(|t| {
+                let mut tool = Tool::new(&t.name, t.shape.clone(), t.input.clone(), t.max_force);
+                tool.grasp = t.grasp;
+                tool
+            })
             .collect();
         world.assemble();
         world
@@ -726,6 +734,45 @@ impl World {
         profile.close();
     }
 
+    /// Graspers grasp when both jaws touch and the opening falls to `grasp_below`, and let go when
+    /// it grows past `release_above` (hysteresis), at the start of the tick, for every body at once.
+    fn update_grasps(&mut self, counters: &mut StepCounters) {
+        for (index, tool) in self.tools.iter_mut().enumerate() {
+            let Some(settings) = tool.grasp else {
+                continue;
+            };
+            if tool.part_count < 2 {
+                if tool.grasping {
+                    for body in &mut self.bodies {
+                        counters.released += release_nodes(&mut body.surface, index, tool);
+                    }
+                    tool.grasping = false;
+                }
+                continue;
+            }
+            if tool.grasping {
+                if tool.jaw > settings.release_above {
+                    for body in &mut self.bodies {
+                        counters.released += release_nodes(&mut body.surface, index, tool);
+                    }
+                    tool.grasping = false;
+                }
+            } else if tool.jaw <= settings.grasp_below {
+                let mut touching = [false; 2];
+                for body in &self.bodies {
+                    jaws_touch(&body.surface, index, &mut touching);
+                }
+                if touching[0] && touching[1] {
+                    for body in &mut self.bodies {
+                        counters.grasped +=
+                            grasp_nodes(&mut body.surface, index, tool, settings.reach);
+                    }
+                    tool.grasping = true;
+                }
+            }
+        }
+    }
+
     fn step_with<C: StageClock>(&mut self, clock: &mut C) {
         clock.enter(Stage::Tools);
         let dt = self.params.dt;
@@ -741,6 +788,9 @@ impl World {
             *reaction = Vec3::zeros();
         }
         let systems = self.systems;
+        if systems.tool_contact {
+            self.update_grasps(&mut counters);
+        }
         for ((((body, solver), refinement), broad), cutter) in self
             .bodies
             .iter_mut()

@@ -41,8 +41,31 @@ pub struct ToolContact {
     pub tool: u32,
     /// Capsule part of that tool.
     pub part: u32,
-    /// Where the node sits on the tool (m, tool frame).
+    /// Where the node sits on the tool (m, tool frame; for a grasped node, where it sat when grasped).
     pub point_in_tool: Vec3,
+    /// Set while a grasper holds the node in the frame of one of its jaws.
+    pub grasp: Option<JawHold>,
+}
+
+/// A node held in a jaw's frame: the jaw (+1 for part 0, −1 for part 1, 0 between them) and the
+/// half opening when it was grasped (rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JawHold {
+    /// +1 for jaw 0, −1 for jaw 1, 0 for the frame between them.
+    pub side: f64,
+    /// Half the jaw opening when the node was grasped (rad).
+    pub half_opening: f64,
+}
+
+impl JawHold {
+    /// Where a node grasped at `point_in_tool` is, in the tool frame, for the half opening `half`
+    /// now: its jaw turned about the tool's y axis since the grasp.
+    pub fn point_now(&self, point_in_tool: &Vec3, half: f64) -> Vec3 {
+        let angle = self.side * (half - self.half_opening);
+        let (s, c) = (crate::math::sin(angle), crate::math::cos(angle));
+        let p = point_in_tool;
+        Vec3::new(c * p.x + s * p.z, p.y, -s * p.x + c * p.z)
+    }
 }
 
 impl Default for ToolContact {
@@ -51,6 +74,7 @@ impl Default for ToolContact {
             tool: NO_TOOL,
             part: 0,
             point_in_tool: Vec3::zeros(),
+            grasp: None,
         }
     }
 }
@@ -88,6 +112,20 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
             continue;
         }
         let start = surface.position_in_world[i];
+        if let Some(hold) = contact.grasp {
+            // Grasped: the node moves with its jaw; the tool supplies whatever force that takes,
+            // and the tissue pulls the tool with the rest (the node's force less its inertia).
+            let point = hold.point_now(&contact.point_in_tool, 0.5 * tool.jaw.max(0.0));
+            let end = tool.pose.to_world(&point);
+            let velocity = (end - start) / dt;
+            let feedback = surface.force_in_world[i]
+                - (velocity - surface.velocity_in_world[i]) * (surface.mass[i] / dt);
+            surface.next_position_in_world[i] = end;
+            surface.velocity_in_world[i] = velocity;
+            add_feedback(tool, &end, &feedback, feedback.norm(), 0.0, false);
+            tool.feedback.grasped += 1;
+            continue;
+        }
         // Outward normal of the tool at the node, from where the node sits at the start of the tick.
         let fallback = tool.previous_pose.world_from_tool
             * (contact.point_in_tool
@@ -276,6 +314,11 @@ fn try_capture(
         tool: tool_index as u32,
         part: part as u32,
         point_in_tool: tool.pose.to_tool(&end),
+        // A node that meets the jaws of a grasper that holds is held with them.
+        grasp: (tool.grasping && part < 2).then(|| JawHold {
+            side: if part == 0 { 1.0 } else { -1.0 },
+            half_opening: 0.5 * tool.jaw.max(0.0),
+        }),
     };
     surface.next_position_in_world[i] = end;
     surface.velocity_in_world[i] = (end - start) / dt;
@@ -387,7 +430,7 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f
         reach.inflate(margin);
         for i in 0..surface.next_position_in_world.len() {
             let p = surface.next_position_in_world[i];
-            if !reach.overlaps_segment(&p, &p) {
+            if surface.tool_contact[i].grasp.is_some() || !reach.overlaps_segment(&p, &p) {
                 continue;
             }
             let (distance, part) = tool.signed_distance(&p);
@@ -401,4 +444,75 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f
         }
     }
     moved
+}
+
+/// Whether both jaws of grasper `tool` (index `index`) touch the surface (contacts of the last tick).
+pub fn jaws_touch(surface: &Surface, index: usize, touching: &mut [bool; 2]) {
+    for c in &surface.tool_contact {
+        if c.tool == index as u32 && c.grasp.is_none() && (c.part as usize) < 2 {
+            touching[c.part as usize] = true;
+        }
+    }
+}
+
+/// Grasps with grasper `tool` (index `index`) at the start of its tick: the nodes in contact with its
+/// jaws, and the free nodes within `reach` of a jaw's surface, are held in that jaw's frame. Returns
+/// how many nodes were grasped.
+pub fn grasp_nodes(surface: &mut Surface, index: usize, tool: &Tool, reach: f64) -> u32 {
+    let half = 0.5 * tool.previous_jaw.max(0.0);
+    let side = |part: usize| if part == 0 { 1.0 } else { -1.0 };
+    let mut grasped = 0;
+    for i in 0..surface.tool_contact.len() {
+        let contact = &mut surface.tool_contact[i];
+        if contact.tool == index as u32 {
+            if (contact.part as usize) < 2 && contact.grasp.is_none() {
+                contact.grasp = Some(JawHold {
+                    side: side(contact.part as usize),
+                    half_opening: half,
+                });
+                grasped += 1;
+            }
+            continue;
+        }
+        if contact.tool != NO_TOOL || reach <= 0.0 {
+            continue;
+        }
+        let p = surface.position_in_world[i];
+        let distance = |part: &crate::tool::CapsulePart| {
+            (p - part.closest_on_segment(&p)).norm() - part.radius
+        };
+        let (d0, d1) = (
+            distance(&tool.parts_start[0]),
+            distance(&tool.parts_start[1]),
+        );
+        let part = if d1 < d0 { 1 } else { 0 };
+        if d0.min(d1) <= reach {
+            *contact = ToolContact {
+                tool: index as u32,
+                part: part as u32,
+                point_in_tool: tool.previous_pose.to_tool(&p),
+                grasp: Some(JawHold {
+                    side: side(part),
+                    half_opening: half,
+                }),
+            };
+            grasped += 1;
+        }
+    }
+    grasped
+}
+
+/// Lets go of every node grasper `index` holds: each becomes an ordinary contact at the point of the
+/// tool where it is (released at once if the tissue pulls it away). Returns how many.
+pub fn release_nodes(surface: &mut Surface, index: usize, tool: &Tool) -> u32 {
+    let mut released = 0;
+    for i in 0..surface.tool_contact.len() {
+        let contact = &mut surface.tool_contact[i];
+        if contact.tool == index as u32 && contact.grasp.is_some() {
+            contact.grasp = None;
+            contact.point_in_tool = tool.previous_pose.to_tool(&surface.position_in_world[i]);
+            released += 1;
+        }
+    }
+    released
 }

@@ -19,7 +19,7 @@ use crate::Vec3;
 use crate::body::{BodyParams, Placement};
 use crate::collision::obstacle::{Obstacle, ObstacleShape};
 use crate::dynamics::Integrator;
-use crate::tool::{Keyframe, ToolInput, ToolPose, ToolShape};
+use crate::tool::{GraspSettings, Keyframe, ToolInput, ToolPose, ToolShape};
 use mesh::SurfaceMesh;
 use schema::*;
 
@@ -81,6 +81,8 @@ pub struct ToolSpec {
     pub input: ToolInput,
     /// Device force limit (N).
     pub max_force: Option<f64>,
+    /// How a grasper grasps (`None` for other shapes).
+    pub grasp: Option<GraspSettings>,
 }
 
 /// A validated scene.
@@ -542,6 +544,7 @@ impl Ctx<'_> {
             ));
         }
         let positive = |v: &Spanned<f64>, key: &str| self.number(Some(v), 0.0, key, Rule::Positive);
+        let mut grasp = None;
         let shape = if let Some(sphere) = &s.sphere {
             ToolShape::Sphere {
                 radius: positive(&sphere.get_ref().radius, "radius")?,
@@ -554,6 +557,39 @@ impl Ctx<'_> {
             }
         } else if let Some(grasper) = &s.grasper {
             let g = grasper.get_ref();
+            let defaults = GraspSettings::default();
+            let grasp_below = self.number(
+                g.grasp_below.as_ref(),
+                defaults.grasp_below,
+                "grasp_below",
+                Rule::NonNegative,
+            )?;
+            let release_above = self.number(
+                g.release_above.as_ref(),
+                defaults.release_above,
+                "release_above",
+                Rule::Positive,
+            )?;
+            if release_above <= grasp_below {
+                let span = g
+                    .release_above
+                    .as_ref()
+                    .or(g.grasp_below.as_ref())
+                    .map_or(grasper.span(), |v| v.span());
+                return Err(self.error(
+                    span,
+                    format!(
+                        "`release_above` ({release_above} rad) must be larger than `grasp_below` \
+                         ({grasp_below} rad): the jaws let go only after opening past where they \
+                         grasped"
+                    ),
+                ));
+            }
+            grasp = Some(GraspSettings {
+                grasp_below,
+                release_above,
+                reach: self.number(g.reach.as_ref(), defaults.reach, "reach", Rule::NonNegative)?,
+            });
             ToolShape::Grasper {
                 jaw_length: positive(&g.jaw_length, "jaw_length")?,
                 radius: positive(&g.radius, "radius")?,
@@ -600,6 +636,7 @@ impl Ctx<'_> {
             shape,
             input,
             max_force,
+            grasp,
         })
     }
 

@@ -191,6 +191,9 @@ pub(super) struct GrasperSection {
     pub jaw_length: Spanned<f64>,
     pub radius: Spanned<f64>,
     pub shaft_length: Option<Spanned<f64>>,
+    pub grasp_below: Option<Spanned<f64>>,
+    pub release_above: Option<Spanned<f64>>,
+    pub reach: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]

@@ -53,6 +53,27 @@ pub enum ToolShape {
     },
 }
 
+/// When a grasper holds what is between its jaws (scene keys in its `grasper` table).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GraspSettings {
+    /// The jaws grasp when both touch tissue and the opening is at most this (rad).
+    pub grasp_below: f64,
+    /// Grasped nodes are let go when the opening grows past this (rad); above `grasp_below`.
+    pub release_above: f64,
+    /// Free nodes within this distance of a jaw's surface are grasped too (m).
+    pub reach: f64,
+}
+
+impl Default for GraspSettings {
+    fn default() -> Self {
+        Self {
+            grasp_below: 0.05,
+            release_above: 0.5,
+            reach: 0.0,
+        }
+    }
+}
+
 /// A capsule: the points within `radius` of the segment from `a` to `b`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CapsulePart {
@@ -263,6 +284,8 @@ pub struct Feedback {
     pub friction_force: f64,
     /// Contact nodes sliding on the tool this tick.
     pub sliding: u32,
+    /// Nodes a grasper holds in its jaws' frames this tick.
+    pub grasped: u32,
 }
 
 /// A rigid tool.
@@ -299,6 +322,10 @@ pub struct Tool {
     /// False for an externally driven tool until its first pose arrives: until then it has no parts
     /// and touches nothing, and its first pose places it without sweeping from the origin.
     pub active: bool,
+    /// How a grasper grasps (`None` for other shapes).
+    pub grasp: Option<GraspSettings>,
+    /// Whether the grasper holds what is between its jaws.
+    pub grasping: bool,
 }
 
 impl Tool {
@@ -321,7 +348,12 @@ impl Tool {
             feedback: Feedback::default(),
             target: None,
             active: false,
+            grasp: None,
+            grasping: false,
         };
+        if matches!(tool.shape, ToolShape::Grasper { .. }) {
+            tool.grasp = Some(GraspSettings::default());
+        }
         tool.active = matches!(tool.input, ToolInput::Script(_));
         tool.place();
         tool.parts_start = tool.parts_end;

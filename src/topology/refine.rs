@@ -18,7 +18,7 @@ use super::{
 use crate::Vec3;
 use crate::body::Body;
 use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_triangle_distance};
-use crate::contact::tool::{NO_TOOL, ToolContact};
+use crate::contact::tool::{JawHold, NO_TOOL, ToolContact};
 use crate::tool::Tool;
 
 /// Barycentric weight under which the contact point is taken to lie on the opposite edge.
@@ -202,6 +202,11 @@ impl Refinement {
                     tool: tool_index as u32,
                     part: part as u32,
                     point_in_tool: tool.pose.to_tool(&on_surface),
+                    // Under the jaws of a grasper that holds: held with them.
+                    grasp: (tool.grasping && part < 2).then(|| JawHold {
+                        side: if part == 0 { 1.0 } else { -1.0 },
+                        half_opening: 0.5 * tool.jaw.max(0.0),
+                    }),
                 };
                 // A position correction, like the projection of a penetrating node: the node keeps
                 // the velocity its corners gave it (momentum), it does not fly out of the tool.
