@@ -741,23 +741,15 @@ impl World {
             let Some(settings) = tool.grasp else {
                 continue;
             };
-            if tool.part_count < 2 {
-                if tool.grasping {
-                    for body in &mut self.bodies {
-                        counters.released += release_nodes(&mut body.surface, index, tool);
-                    }
-                    tool.grasping = false;
-                }
-                continue;
-            }
             if tool.grasping {
-                if tool.jaw > settings.release_above {
+                // Let go when the jaws open past the release opening (or the tool left the scene).
+                if tool.part_count < 2 || tool.jaw > settings.release_above {
                     for body in &mut self.bodies {
                         counters.released += release_nodes(&mut body.surface, index, tool);
                     }
                     tool.grasping = false;
                 }
-            } else if tool.jaw <= settings.grasp_below {
+            } else if tool.part_count >= 2 && tool.jaw <= settings.grasp_below {
                 let mut touching = [false; 2];
                 for body in &self.bodies {
                     jaws_touch(&body.surface, index, &mut touching);

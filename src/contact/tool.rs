@@ -58,6 +58,14 @@ pub struct JawHold {
 }
 
 impl JawHold {
+    /// A hold on part `part` of a grasper (0 or 1: its jaws) whose half opening is `half_opening`.
+    pub fn on_part(part: usize, half_opening: f64) -> Self {
+        Self {
+            side: if part == 0 { 1.0 } else { -1.0 },
+            half_opening,
+        }
+    }
+
     /// Where a node grasped at `point_in_tool` is, in the tool frame, for the half opening `half`
     /// now: its jaw turned about the tool's y axis since the grasp.
     pub fn point_now(&self, point_in_tool: &Vec3, half: f64) -> Vec3 {
@@ -315,10 +323,7 @@ fn try_capture(
         part: part as u32,
         point_in_tool: tool.pose.to_tool(&end),
         // A node that meets the jaws of a grasper that holds is held with them.
-        grasp: (tool.grasping && part < 2).then(|| JawHold {
-            side: if part == 0 { 1.0 } else { -1.0 },
-            half_opening: 0.5 * tool.jaw.max(0.0),
-        }),
+        grasp: (tool.grasping && part < 2).then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
     };
     surface.next_position_in_world[i] = end;
     surface.velocity_in_world[i] = (end - start) / dt;
@@ -460,16 +465,12 @@ pub fn jaws_touch(surface: &Surface, index: usize, touching: &mut [bool; 2]) {
 /// how many nodes were grasped.
 pub fn grasp_nodes(surface: &mut Surface, index: usize, tool: &Tool, reach: f64) -> u32 {
     let half = 0.5 * tool.previous_jaw.max(0.0);
-    let side = |part: usize| if part == 0 { 1.0 } else { -1.0 };
     let mut grasped = 0;
     for i in 0..surface.tool_contact.len() {
         let contact = &mut surface.tool_contact[i];
         if contact.tool == index as u32 {
             if (contact.part as usize) < 2 && contact.grasp.is_none() {
-                contact.grasp = Some(JawHold {
-                    side: side(contact.part as usize),
-                    half_opening: half,
-                });
+                contact.grasp = Some(JawHold::on_part(contact.part as usize, half));
                 grasped += 1;
             }
             continue;
@@ -491,10 +492,7 @@ pub fn grasp_nodes(surface: &mut Surface, index: usize, tool: &Tool, reach: f64)
                 tool: index as u32,
                 part: part as u32,
                 point_in_tool: tool.previous_pose.to_tool(&p),
-                grasp: Some(JawHold {
-                    side: side(part),
-                    half_opening: half,
-                }),
+                grasp: Some(JawHold::on_part(part, half)),
             };
             grasped += 1;
         }

@@ -203,10 +203,8 @@ impl Refinement {
                     part: part as u32,
                     point_in_tool: tool.pose.to_tool(&on_surface),
                     // Under the jaws of a grasper that holds: held with them.
-                    grasp: (tool.grasping && part < 2).then(|| JawHold {
-                        side: if part == 0 { 1.0 } else { -1.0 },
-                        half_opening: 0.5 * tool.jaw.max(0.0),
-                    }),
+                    grasp: (tool.grasping && part < 2)
+                        .then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
                 };
                 // A position correction, like the projection of a penetrating node: the node keeps
                 // the velocity its corners gave it (momentum), it does not fly out of the tool.
