@@ -7,7 +7,7 @@ use std::io::Write;
 use crate::world::World;
 
 /// The trace header.
-pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration,integrator,substeps,worst_omega_dt,stability_margin,guard_events,boundary_edges";
+pub const TRACE_HEADER: &str = "tick,time,body,com_x,com_y,com_z,rigid_x,rigid_y,rigid_z,qw,qx,qy,qz,vx,vy,vz,kinetic_energy,total_mass,nodes,triangles,min_obstacle_gap,max_penetration,integrator,substeps,worst_omega_dt,stability_margin,guard_events,boundary_edges,plastic_set";
 
 /// Writes the header line.
 pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
@@ -15,7 +15,7 @@ pub fn write_trace_header(out: &mut impl Write) -> std::io::Result<()> {
 }
 
 /// The feedback trace header.
-pub const FEEDBACK_HEADER: &str = "tick,time,tool,fx,fy,fz,tx,ty,tz,contacts,clamped";
+pub const FEEDBACK_HEADER: &str = "tick,time,tool,fx,fy,fz,tx,ty,tz,contacts,clamped,grasped";
 
 /// Writes the feedback header line.
 pub fn write_feedback_header(out: &mut impl Write) -> std::io::Result<()> {
@@ -29,7 +29,7 @@ pub fn write_feedback_rows(out: &mut impl Write, world: &World) -> std::io::Resu
         let f = &tool.feedback;
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             world.tick,
             world.time(),
             tool.name,
@@ -40,7 +40,8 @@ pub fn write_feedback_rows(out: &mut impl Write, world: &World) -> std::io::Resu
             f.torque_in_world.y,
             f.torque_in_world.z,
             f.contacts,
-            f.clamped as u8
+            f.clamped as u8,
+            f.grasped
         )?;
     }
     Ok(())
@@ -60,7 +61,7 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             .map_or(String::new(), |g| g.to_string());
         writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             world.tick,
             world.time(),
             body.name,
@@ -88,7 +89,8 @@ pub fn write_trace_rows(out: &mut impl Write, world: &World) -> std::io::Result<
             margin.omega_dt,
             margin.margin,
             world.guards[b].events,
-            body.boundary_edges
+            body.boundary_edges,
+            crate::dynamics::plasticity::largest_set(body)
         )?;
     }
     Ok(())

@@ -23,6 +23,7 @@ use crate::dynamics::integrate::{
     commit_positions, integrate_free_nodes_symplectic, integrate_nodes_symplectic,
 };
 use crate::dynamics::multirate::Multirate;
+use crate::dynamics::plasticity;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
 use crate::scene::{Scene, WorldParams};
 use crate::tool::ToolShape;
@@ -122,6 +123,8 @@ pub struct StepCounters {
     pub grasped: u32,
     /// Nodes graspers let go this step.
     pub released: u32,
+    /// Homologues that flowed plastically this step.
+    pub plastic_flows: u32,
 }
 
 /// Everything simulated, and the step.
@@ -904,6 +907,11 @@ impl World {
             commit_positions(&mut body.surface);
             if !solver.integrates_rigid() {
                 body.rigid.integrate(dt);
+            }
+            // Plastic flow of the links stretched past their yield, on the committed state.
+            if let Some(plasticity) = body.params.plasticity {
+                counters.plastic_flows +=
+                    plasticity::flow(body, &plasticity, plasticity.tick_fraction(dt));
             }
         }
         // Cuts along the blades' sweeps, then coarsening, before the guard looks at the bodies.

@@ -360,8 +360,8 @@ fn a_cutting_session_is_deterministic_and_replays_bit_for_bit() {
     assert!(trace.contains(",tube.1,") && trace.contains(",organ,"));
 }
 
-/// Runs `scenes/<name>.toml` (or a variant written here) twice with a trace and a recording;
-/// asserts identical traces, a boundary, and `palpa-replay --verify` OK. Returns the trace.
+/// Runs `scenes/<name>.toml` (or a variant written here) twice with a trace and a recording (see
+/// [`common::session_replays`]) and asserts a boundary in the trace. Returns the trace.
 fn session_is_deterministic_and_replays(name: &str, duration: &str) -> String {
     let dir = std::env::temp_dir().join(format!("palpa_cut_record_{name}_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -380,54 +380,11 @@ rigid_mass = 0.1
         scene = dir.join(format!("{name}.toml"));
         std::fs::write(&scene, text).unwrap();
     }
-    let mut traces = Vec::new();
-    for run in 0..2 {
-        let trace = dir.join(format!("trace{run}.csv"));
-        let file = dir.join(format!("cut{run}.mcap"));
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
-            .args([
-                "run",
-                scene.to_str().unwrap(),
-                "--duration",
-                duration,
-                "--trace",
-            ])
-            .arg(&trace)
-            .arg("--record")
-            .arg(&file)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        traces.push(std::fs::read(&trace).unwrap());
-        if run == 0 {
-            let verify = std::process::Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
-                .arg(&file)
-                .arg("--verify")
-                .output()
-                .unwrap();
-            let text = String::from_utf8_lossy(&verify.stdout);
-            assert!(
-                verify.status.success() && text.contains("verify: OK"),
-                "{text}{}",
-                String::from_utf8_lossy(&verify.stderr)
-            );
-        }
-    }
-    assert!(traces[0] == traces[1], "two runs of {name} differ");
-    let text = String::from_utf8_lossy(&traces[0]).into_owned();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let column = header.iter().position(|c| *c == "boundary_edges").unwrap();
-    let most = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(column).unwrap().parse::<u32>().unwrap())
-        .max()
-        .unwrap();
-    assert!(most > 0, "no boundary in the trace of {name}");
+    let text = common::session_replays(&scene, duration, &dir);
+    let most = common::trace_column(&text, "boundary_edges")
+        .into_iter()
+        .fold(0.0, f64::max);
+    assert!(most > 0.0, "no boundary in the trace of {name}");
     let _ = std::fs::remove_dir_all(&dir);
     text
 }

@@ -59,6 +59,7 @@ fn a_step_allocates_nothing_after_warm_up() {
         "scenes/inclined_plane.toml",
         "scenes/table_rest.toml",
         "scenes/probe_press.toml",
+        "scenes/plastic.toml",
     ] {
         let scene = load_scene(&common::repo_root().join(scene)).unwrap();
         let mut world = World::from_scene(&scene);

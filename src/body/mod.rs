@@ -43,6 +43,8 @@ pub struct BodyParams {
     pub subdivision: Option<crate::topology::SubdivisionSettings>,
     /// Cutting by blades, when on.
     pub cutting: Option<crate::topology::CuttingSettings>,
+    /// Plastic flow of the homologues, when on.
+    pub plasticity: Option<crate::dynamics::plasticity::PlasticitySettings>,
 }
 
 impl Default for BodyParams {
@@ -60,6 +62,7 @@ impl Default for BodyParams {
             integrator: None,
             subdivision: None,
             cutting: None,
+            plasticity: None,
         }
     }
 }
@@ -99,6 +102,9 @@ pub struct Surface {
     pub homologue_in_body: Vec<Vec3>,
     /// Homologue positions this step (m, world frame); scratch refreshed by the force stage.
     pub homologue_in_world: Vec<Vec3>,
+    /// How far plastic flow has moved each homologue from its original place (m, body frame); zero
+    /// unless the body has plasticity (`homologue_in_body` already includes it).
+    pub plastic_offset_in_body: Vec<Vec3>,
     /// Link stiffness of each node (N/m).
     pub link_stiffness: Vec<f64>,
     /// Link damping of each node (N·s/m).
@@ -129,6 +135,8 @@ pub struct NewNode {
     pub homologue_in_body: Vec3,
     /// m.
     pub homologue_in_world: Vec3,
+    /// m, body frame: the plastic set already in `homologue_in_body`.
+    pub plastic_offset_in_body: Vec3,
     /// N/m.
     pub link_stiffness: f64,
     /// N·s/m.
@@ -201,6 +209,7 @@ impl Surface {
         self.air_damping.reserve(additional);
         self.homologue_in_body.reserve(additional);
         self.homologue_in_world.reserve(additional);
+        self.plastic_offset_in_body.reserve(additional);
         self.link_stiffness.reserve(additional);
         self.link_damping.reserve(additional);
         self.tool_contact.reserve(additional);
@@ -221,6 +230,8 @@ impl Surface {
         self.air_damping.push(air_viscosity * node.mass);
         self.homologue_in_body.push(node.homologue_in_body);
         self.homologue_in_world.push(node.homologue_in_world);
+        self.plastic_offset_in_body
+            .push(node.plastic_offset_in_body);
         self.link_stiffness.push(node.link_stiffness);
         self.link_damping.push(node.link_damping);
         self.tool_contact.push(ToolContact::default());
@@ -239,6 +250,7 @@ impl Surface {
         self.air_damping.pop();
         self.homologue_in_body.pop();
         self.homologue_in_world.pop();
+        self.plastic_offset_in_body.pop();
         self.link_stiffness.pop();
         self.link_damping.pop();
         self.tool_contact.pop();
@@ -362,6 +374,7 @@ impl Body {
             inverse_mass,
             air_damping,
             homologue_in_body: mesh.positions_in_body.clone(),
+            plastic_offset_in_body: vec![Vec3::zeros(); n],
             link_stiffness: vec![params.link_stiffness; n],
             link_damping: vec![params.link_damping; n],
             triangles: mesh.triangles.clone(),

@@ -6,6 +6,7 @@ pub mod guard;
 pub mod implicit;
 pub mod integrate;
 pub mod multirate;
+pub mod plasticity;
 pub mod stability;
 
 /// The time integration of a body's surface nodes.

@@ -429,6 +429,27 @@ impl Ctx<'_> {
         }))
     }
 
+    fn plasticity(
+        &self,
+        section: &Spanned<PlasticitySection>,
+    ) -> Result<Option<crate::dynamics::plasticity::PlasticitySettings>, SceneError> {
+        let s = section.get_ref();
+        if s.enabled == Some(false) {
+            return Ok(None);
+        }
+        let d = crate::dynamics::plasticity::PlasticitySettings::default();
+        Ok(Some(crate::dynamics::plasticity::PlasticitySettings {
+            yield_stretch: self.number(
+                s.yield_.as_ref(),
+                d.yield_stretch,
+                "yield",
+                Rule::NonNegative,
+            )?,
+            creep: self.number(s.creep.as_ref(), d.creep, "creep", Rule::NonNegative)?,
+            max: self.number(s.max.as_ref(), d.max, "max", Rule::NonNegative)?,
+        }))
+    }
+
     fn cutting(
         &self,
         section: &Spanned<CuttingSection>,
@@ -762,6 +783,10 @@ impl Ctx<'_> {
             cutting: match &b.cutting {
                 None => None,
                 Some(v) => self.cutting(v)?,
+            },
+            plasticity: match &b.plasticity {
+                None => None,
+                Some(v) => self.plasticity(v)?,
             },
         };
         let placement = Placement {

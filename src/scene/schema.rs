@@ -46,6 +46,17 @@ pub(super) struct BodySection {
     pub integrator: Option<Spanned<String>>,
     pub subdivision: Option<Spanned<SubdivisionSection>>,
     pub cutting: Option<Spanned<CuttingSection>>,
+    pub plasticity: Option<Spanned<PlasticitySection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct PlasticitySection {
+    pub enabled: Option<bool>,
+    #[serde(rename = "yield")]
+    pub yield_: Option<Spanned<f64>>,
+    pub creep: Option<Spanned<f64>>,
+    pub max: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]

@@ -989,6 +989,8 @@ impl Cutter {
                 homologue_in_body: s.homologue_in_body[ia] * w[0] + s.homologue_in_body[ib] * w[1],
                 homologue_in_world: s.homologue_in_world[ia] * w[0]
                     + s.homologue_in_world[ib] * w[1],
+                plastic_offset_in_body: s.plastic_offset_in_body[ia] * w[0]
+                    + s.plastic_offset_in_body[ib] * w[1],
                 link_stiffness: k_link,
                 link_damping: c_link,
             },
@@ -1419,6 +1421,7 @@ impl Cutter {
                 mass,
                 homologue_in_body: s.homologue_in_body[iv],
                 homologue_in_world: s.homologue_in_world[iv],
+                plastic_offset_in_body: s.plastic_offset_in_body[iv],
                 link_stiffness: k,
                 link_damping: c,
             };

@@ -379,6 +379,7 @@ fn append_node(
     let mut moment_next = Vec3::zeros();
     let mut homologue = Vec3::zeros();
     let mut homologue_world = Vec3::zeros();
+    let mut plastic_offset = Vec3::zeros();
     let (mut k_link, mut c_link) = (0.0, 0.0);
     entry.corner_count = corners.len();
     for (idx, &c) in corners.iter().enumerate() {
@@ -397,6 +398,7 @@ fn append_node(
         moment_next += s.next_position_in_world[c] * taken;
         homologue += s.homologue_in_body[c] * w[idx];
         homologue_world += s.homologue_in_world[c] * w[idx];
+        plastic_offset += s.plastic_offset_in_body[c] * w[idx];
         match link_share {
             None => {
                 k_link += s.link_stiffness[c] * w[idx];
@@ -426,6 +428,7 @@ fn append_node(
             mass,
             homologue_in_body: homologue,
             homologue_in_world: homologue_world,
+            plastic_offset_in_body: plastic_offset,
             link_stiffness: k_link,
             link_damping: c_link,
         },

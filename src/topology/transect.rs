@@ -488,6 +488,7 @@ impl Transector {
                 s.air_damping[w] = s.air_damping[v];
                 s.homologue_in_body[w] = s.homologue_in_body[v];
                 s.homologue_in_world[w] = s.homologue_in_world[v];
+                s.plastic_offset_in_body[w] = s.plastic_offset_in_body[v];
                 s.link_stiffness[w] = s.link_stiffness[v];
                 s.link_damping[w] = s.link_damping[v];
                 s.tool_contact[w] = s.tool_contact[v];
@@ -702,6 +703,7 @@ impl Transector {
                 mass: 1.0,
                 homologue_in_body: rest,
                 homologue_in_world: world,
+                plastic_offset_in_body: Vec3::zeros(),
                 link_stiffness: k_link,
                 link_damping: c_link,
             },
@@ -778,6 +780,7 @@ fn copy_node(
             mass: from.mass[v],
             homologue_in_body: from.homologue_in_body[v],
             homologue_in_world: from.homologue_in_world[v],
+            plastic_offset_in_body: from.plastic_offset_in_body[v],
             link_stiffness: from.link_stiffness[v],
             link_damping: from.link_damping[v],
         },

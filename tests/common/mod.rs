@@ -157,3 +157,65 @@ pub fn wait_for_exit(
     }
     (status, text)
 }
+
+/// Runs `palpa run SCENE --duration D --trace … --record …` twice in `dir`; asserts that both runs
+/// succeed with identical trace bytes and that `palpa-replay --verify` finds the first recording
+/// replays bit for bit. Returns the trace text.
+pub fn session_replays(scene: &Path, duration: &str, dir: &Path) -> String {
+    let mut traces = Vec::new();
+    for run in 0..2 {
+        let trace = dir.join(format!("trace{run}.csv"));
+        let file = dir.join(format!("session{run}.mcap"));
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_palpa"))
+            .args([
+                "run",
+                scene.to_str().unwrap(),
+                "--duration",
+                duration,
+                "--trace",
+            ])
+            .arg(&trace)
+            .arg("--record")
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        traces.push(std::fs::read(&trace).unwrap());
+        if run == 0 {
+            let verify = std::process::Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+                .arg(&file)
+                .arg("--verify")
+                .output()
+                .unwrap();
+            let text = String::from_utf8_lossy(&verify.stdout);
+            assert!(
+                verify.status.success() && text.contains("verify: OK"),
+                "{text}{}",
+                String::from_utf8_lossy(&verify.stderr)
+            );
+        }
+    }
+    assert!(
+        traces[0] == traces[1],
+        "two runs of {} differ",
+        scene.display()
+    );
+    String::from_utf8_lossy(&traces[0]).into_owned()
+}
+
+/// The numbers of the column `name` of a trace (CSV with a header), in row order.
+pub fn trace_column(text: &str, name: &str) -> Vec<f64> {
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|c| *c == name)
+        .unwrap_or_else(|| panic!("no column {name}"));
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(column).unwrap().parse::<f64>().unwrap())
+        .collect()
+}
