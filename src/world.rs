@@ -125,6 +125,8 @@ pub struct StepCounters {
     pub released: u32,
     /// Homologues that flowed plastically this step.
     pub plastic_flows: u32,
+    /// Bodies whose springs tore this step (their mesh changed).
+    pub tears: u32,
 }
 
 /// Everything simulated, and the step.
@@ -483,7 +485,8 @@ impl World {
                 .tools
                 .iter()
                 .any(|t| matches!(t.shape, ToolShape::Blade { .. }))
-                && self.bodies.iter().any(|b| b.params.cutting.is_some()),
+                && self.bodies.iter().any(|b| b.params.cutting.is_some())
+                || self.bodies.iter().any(|b| b.params.tearing.is_some()),
         };
         for body in &mut self.bodies {
             if body.room_nodes() > 0 {
@@ -517,7 +520,7 @@ impl World {
             .iter()
             .map(|b| {
                 b.params
-                    .cutting
+                    .topology_cutter()
                     .map(|settings| Cutter::new(b, settings, tool_count))
             })
             .collect();
@@ -575,7 +578,7 @@ impl World {
             return;
         }
         for (origin, body) in self.bodies.iter().enumerate() {
-            let Some(settings) = body.params.cutting else {
+            let Some(settings) = body.params.topology_cutter() else {
                 continue;
             };
             for _ in 0..settings.max_pieces {
@@ -799,6 +802,7 @@ impl World {
             let mut cutting_blades: u64 = 0;
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
+                && cutter.blades
             {
                 cutting_blades =
                     cutting_blade_mask(cutter, body, &self.tools, &self.previous_force);
@@ -928,7 +932,10 @@ impl World {
                 clock.enter(Stage::Cut);
                 let mut changed = false;
                 for (tool_index, tool) in self.tools.iter().enumerate() {
-                    if !matches!(tool.shape, ToolShape::Blade { .. }) || tool.part_count == 0 {
+                    if !cutter.blades
+                        || !matches!(tool.shape, ToolShape::Blade { .. })
+                        || tool.part_count == 0
+                    {
                         continue;
                     }
                     let pressing = cutter.settings.resistance > 0.0 && !cutter.through[tool_index];
@@ -956,8 +963,21 @@ impl World {
                         cutter.check_parts = true;
                     }
                 }
-                if changed {
+                let cut = changed;
+                // Springs stretched past the tearing threshold break, a bounded number per tick.
+                if let Some(mut tearer) = cutter.tearer.take() {
+                    let step = tearer.step(body, cutter);
+                    cutter.tearer = Some(tearer);
+                    if step.changed {
+                        changed = true;
+                        counters.tears += 1;
+                        counters.opened_edges += step.opened;
+                    }
+                }
+                if cut {
                     counters.cuts += 1;
+                }
+                if changed {
                     cutter.changed_at = self.tick + 1;
                     if let Some(refinement) = refinement.as_mut() {
                         refinement.commit(body);

@@ -45,6 +45,29 @@ pub struct BodyParams {
     pub cutting: Option<crate::topology::CuttingSettings>,
     /// Plastic flow of the homologues, when on.
     pub plasticity: Option<crate::dynamics::plasticity::PlasticitySettings>,
+    /// Tearing of overstretched springs, when on.
+    pub tearing: Option<crate::topology::TearingSettings>,
+}
+
+impl BodyParams {
+    /// The settings of the cutter that changes this body's topology (cutting, tearing or both: the
+    /// pools are the larger of the two), `None` when neither is on.
+    pub fn topology_cutter(&self) -> Option<crate::topology::CuttingSettings> {
+        match (self.cutting, self.tearing) {
+            (Some(c), Some(t)) => Some(crate::topology::CuttingSettings {
+                max_nodes: c.max_nodes.max(t.max_nodes),
+                max_pieces: c.max_pieces.max(t.max_pieces),
+                ..c
+            }),
+            (Some(c), None) => Some(c),
+            (None, Some(t)) => Some(crate::topology::CuttingSettings {
+                max_nodes: t.max_nodes,
+                max_pieces: t.max_pieces,
+                ..crate::topology::CuttingSettings::default()
+            }),
+            (None, None) => None,
+        }
+    }
 }
 
 impl Default for BodyParams {
@@ -63,6 +86,7 @@ impl Default for BodyParams {
             subdivision: None,
             cutting: None,
             plasticity: None,
+            tearing: None,
         }
     }
 }
@@ -408,7 +432,7 @@ impl Body {
         } else {
             0
         };
-        subdivision + self.params.cutting.map_or(0, |c| c.max_nodes)
+        subdivision + self.params.topology_cutter().map_or(0, |c| c.max_nodes)
     }
 
     /// Reserves the room of [`Body::room_nodes`] in every buffer (2 triangles and 3 edges per node)

@@ -73,6 +73,14 @@ pub struct Multirate {
     bound_damping: Vec<f64>,
     /// Nodes that touched an obstacle during the substeps of this step.
     touched: Vec<bool>,
+    /// The part of the sub-stepped links' reaction the rigid component has not received yet (N and
+    /// N·m, as a force over one update of the rigid component): the links of nodes stepped between
+    /// its updates pull with forces it did not see when it moved. It takes them at its next update,
+    /// so the links' impulses on the nodes and on the rigid component stay equal and opposite.
+    carried_force: Vec3,
+    carried_torque: Vec3,
+    /// The rigid component's centre at the start and the end of its current update (m, world).
+    centre_interval: [Vec3; 2],
 }
 
 impl Multirate {
@@ -108,6 +116,9 @@ impl Multirate {
             bound_stiffness: Vec::with_capacity(n),
             bound_damping: Vec::with_capacity(n),
             touched: Vec::with_capacity(n),
+            carried_force: Vec3::zeros(),
+            carried_torque: Vec3::zeros(),
+            centre_interval: [Vec3::zeros(); 2],
         };
         multirate.rebuild(body, dt);
         multirate
@@ -309,16 +320,35 @@ impl Multirate {
         if self.fast.is_empty() {
             return 0;
         }
+        // What the fast nodes' links gave the nodes last step beyond the start-of-step force the
+        // rigid component took: its reaction, now.
+        body.rigid.force_in_world += std::mem::take(&mut self.carried_force);
+        body.rigid.torque_in_world += std::mem::take(&mut self.carried_torque);
         // Where the rigid component will be at the end of the step (its forces are already known), so
         // the fast nodes' homologues move with it through the substeps instead of waiting a step.
         let mut rigid_end = body.rigid.clone();
         rigid_end.integrate(dt);
         let end_rotation = rigid_end.world_from_body.to_rotation_matrix();
+        let start_rotation = body.rigid.world_from_body.to_rotation_matrix();
+        let centre = body.rigid.position_in_world;
+        let velocity_of_centre = body.rigid.velocity_in_world;
+        let omega = body.rigid.angular_velocity_in_world();
         for (k, &i) in self.fast.iter().enumerate() {
-            self.x[k] = s.position_in_world[i as usize];
-            self.v[k] = s.velocity_in_world[i as usize];
+            let i = i as usize;
+            self.x[k] = s.position_in_world[i];
+            self.v[k] = s.velocity_in_world[i];
             self.homologue_end[k] =
-                rigid_end.position_in_world + end_rotation * s.homologue_in_body[i as usize];
+                rigid_end.position_in_world + end_rotation * s.homologue_in_body[i];
+            if s.tool_contact[i].tool == NO_TOOL {
+                // The start-of-step link force the rigid component took (as the force stage has
+                // it), to be corrected by what the substeps apply.
+                let arm = start_rotation * s.homologue_in_body[i];
+                let link = (centre + arm - s.position_in_world[i]) * s.link_stiffness[i]
+                    + (velocity_of_centre + omega.cross(&arm) - s.velocity_in_world[i])
+                        * s.link_damping[i];
+                self.carried_force += link;
+                self.carried_torque += arm.cross(&link);
+            }
         }
         let h = dt / self.substeps as f64;
         let e = &body.edges;
@@ -333,9 +363,14 @@ impl Multirate {
                 let (start, end) = (s.homologue_in_world[i], self.homologue_end[k]);
                 let homologue = start + (end - start) * fraction;
                 let homologue_velocity = (end - start) / dt;
-                let mut force = gravity * s.mass[i] - v * s.air_damping[i]
-                    + (homologue - x) * s.link_stiffness[i]
+                let link = (homologue - x) * s.link_stiffness[i]
                     + (homologue_velocity - v) * s.link_damping[i];
+                // The rigid component's reaction over this substep (a force over the step).
+                let share = 1.0 / self.substeps as f64;
+                let centre_now = centre + (rigid_end.position_in_world - centre) * fraction;
+                self.carried_force -= link * share;
+                self.carried_torque -= (homologue - centre_now).cross(&link) * share;
+                let mut force = gravity * s.mass[i] - v * s.air_damping[i] + link;
                 for at in self.start[k] as usize..self.start[k + 1] as usize {
                     let j = self.neighbour[at] as usize;
                     let edge = self.edge[at] as usize;
@@ -418,14 +453,26 @@ impl Multirate {
             let world_from_body = rigid.world_from_body.to_rotation_matrix();
             let centre = rigid.position_in_world;
             let omega = rigid.angular_velocity_in_world();
-            let (mut reaction_force, mut reaction_torque) = (Vec3::zeros(), Vec3::zeros());
+            // The deep nodes' links of the last interval, which the rigid component has not felt.
+            let (mut reaction_force, mut reaction_torque) = (
+                std::mem::take(&mut self.carried_force),
+                std::mem::take(&mut self.carried_torque),
+            );
+            let finest = self.substeps.trailing_zeros();
             for i in 0..n {
                 let (x, v) = (self.x[i], self.v[i]);
                 let arm = world_from_body * s.homologue_in_body[i];
                 let link = (centre + arm - x) * s.link_stiffness[i]
                     + (rigid.velocity_in_world + omega.cross(&arm) - v) * s.link_damping[i];
-                reaction_force -= link;
-                reaction_torque -= arm.cross(&link);
+                // A deep node applies this force for its own step only (its later steps in the
+                // interval are `step_deep`'s, which carry their reactions).
+                let weight = if deep && s.tool_contact[i].tool == NO_TOOL {
+                    (1u32 << (finest - self.level[i])) as f64 / stride as f64
+                } else {
+                    1.0
+                };
+                reaction_force -= link * weight;
+                reaction_torque -= arm.cross(&link) * weight;
                 self.f[i] = gravity * s.mass[i] - v * s.air_damping[i] + link;
             }
             for k in 0..e.len() {
@@ -440,7 +487,6 @@ impl Multirate {
             if deep {
                 self.x_base[..n].copy_from_slice(&self.x[..n]);
             }
-            let finest = self.substeps.trailing_zeros();
             for i in 0..n {
                 if s.tool_contact[i].tool != NO_TOOL {
                     continue;
@@ -474,6 +520,7 @@ impl Multirate {
                 }
             }
             rigid.integrate(h_base);
+            self.centre_interval = [centre, rigid.position_in_world];
             if deep {
                 let world_from_body = rigid.world_from_body.to_rotation_matrix();
                 for &i in &self.deep {
@@ -538,9 +585,15 @@ impl Multirate {
             let (start, end) = (self.f[i], self.homologue_end[i]);
             let homologue = start + (end - start) * phase_base;
             let homologue_velocity = (end - start) / h_base;
-            let mut force = gravity * s.mass[i] - v * s.air_damping[i]
-                + (homologue - x) * s.link_stiffness[i]
+            let link = (homologue - x) * s.link_stiffness[i]
                 + (homologue_velocity - v) * s.link_damping[i];
+            // Its reaction, for the rigid component's next update (a force over one update).
+            let weight = (1u32 << (finest - self.level[i])) as f64 / stride as f64;
+            let [c0, c1] = self.centre_interval;
+            let arm = homologue - (c0 + (c1 - c0) * phase_base);
+            self.carried_force -= link * weight;
+            self.carried_torque -= arm.cross(&link) * weight;
+            let mut force = gravity * s.mass[i] - v * s.air_damping[i] + link;
             for at in self.start[k] as usize..self.start[k + 1] as usize {
                 let j = self.neighbour[at] as usize;
                 let edge = self.edge[at] as usize;

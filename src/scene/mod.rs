@@ -450,6 +450,43 @@ impl Ctx<'_> {
         }))
     }
 
+    fn tearing(
+        &self,
+        section: &Spanned<TearingSection>,
+    ) -> Result<Option<crate::topology::TearingSettings>, SceneError> {
+        let s = section.get_ref();
+        if s.enabled == Some(false) {
+            return Ok(None);
+        }
+        let d = crate::topology::TearingSettings::default();
+        let whole = |value: &Option<Spanned<u32>>,
+                     default: usize,
+                     name: &str,
+                     range: std::ops::RangeInclusive<u32>|
+         -> Result<usize, SceneError> {
+            match value {
+                None => Ok(default),
+                Some(v) if range.contains(v.get_ref()) => Ok(*v.get_ref() as usize),
+                Some(v) => Err(self.error(
+                    v.span(),
+                    format!(
+                        "`{name}` must be {} to {}, found {}",
+                        range.start(),
+                        range.end(),
+                        v.get_ref()
+                    ),
+                )),
+            }
+        };
+        Ok(Some(crate::topology::TearingSettings {
+            strain: self.number(s.strain.as_ref(), d.strain, "strain", Rule::Positive)?,
+            ticks: whole(&s.ticks, d.ticks as usize, "ticks", 1..=100_000)? as u32,
+            max_per_tick: whole(&s.max_per_tick, d.max_per_tick, "max_per_tick", 1..=64)?,
+            max_nodes: whole(&s.max_nodes, d.max_nodes, "max_nodes", 16..=1 << 16)?,
+            max_pieces: whole(&s.max_pieces, d.max_pieces, "max_pieces", 0..=64)?,
+        }))
+    }
+
     fn cutting(
         &self,
         section: &Spanned<CuttingSection>,
@@ -787,6 +824,10 @@ impl Ctx<'_> {
             plasticity: match &b.plasticity {
                 None => None,
                 Some(v) => self.plasticity(v)?,
+            },
+            tearing: match &b.tearing {
+                None => None,
+                Some(v) => self.tearing(v)?,
             },
         };
         let placement = Placement {

@@ -47,6 +47,18 @@ pub(super) struct BodySection {
     pub subdivision: Option<Spanned<SubdivisionSection>>,
     pub cutting: Option<Spanned<CuttingSection>>,
     pub plasticity: Option<Spanned<PlasticitySection>>,
+    pub tearing: Option<Spanned<TearingSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct TearingSection {
+    pub enabled: Option<bool>,
+    pub strain: Option<Spanned<f64>>,
+    pub ticks: Option<Spanned<u32>>,
+    pub max_per_tick: Option<Spanned<u32>>,
+    pub max_nodes: Option<Spanned<u32>>,
+    pub max_pieces: Option<Spanned<u32>>,
 }
 
 #[derive(Deserialize)]

@@ -244,6 +244,10 @@ pub struct Cutter {
     copies: Vec<u32>,
     /// Triangles this step created (template children, and the triangles flips rewrote).
     created: Vec<u32>,
+    /// Whether blades cut this body (`cutting` on; a cutter may serve tearing alone).
+    pub blades: bool,
+    /// Tearing, when on (it opens the surface with this cutter).
+    pub tearer: Option<super::tear::Tearer>,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -348,7 +352,19 @@ impl Cutter {
             created: Vec::with_capacity(MAX_CREATED),
             transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
             check_parts: false,
+            blades: body.params.cutting.is_some(),
+            tearer: body
+                .params
+                .tearing
+                .map(|t| super::tear::Tearer::new(body, t)),
         }
+    }
+
+    /// Whether a pending path edge (a slit waiting to open) ends at `a` or `b`.
+    pub fn pending_at(&self, a: u32, b: u32) -> bool {
+        self.pending
+            .iter()
+            .any(|&(p, q)| p == a || p == b || q == a || q == b)
     }
 
     /// Adds a transection's figures to the counters.
@@ -581,6 +597,58 @@ impl Cutter {
             body.refresh_diagonals();
             self.counters.steps += 1;
             self.counters.splits += step.splits as u64;
+            self.counters.copies += copies as u64;
+            self.counters.opened_edges += opened as u64;
+        }
+        step
+    }
+
+    /// Opens `edges` (springs that tore: pairs of nodes of the current mesh, each an edge of two
+    /// triangles) with the opening of a cut: nodes whose triangles fall apart are copied, opened
+    /// springs become two lips. Edges that cannot open yet (a slit of one edge between two inner
+    /// nodes) are kept pending, as a cut's are. Allocation-free; refused (and counted) when the
+    /// body's reserved room cannot take it.
+    pub fn tear(&mut self, body: &mut Body, edges: &[(u32, u32)]) -> CutStep {
+        let mut step = CutStep::default();
+        let n = body.node_count();
+        let paths = edges.len() + self.pending.len();
+        let need = 2 * paths + 2;
+        if n + need > body.limits.nodes
+            || body.edges.len() + need > body.limits.edges
+            || n + need > self.node_stamp.len()
+            || paths > self.path_edges.capacity()
+        {
+            step.refused = true;
+            self.counters.refused += 1;
+            return step;
+        }
+        self.path_edges.clear();
+        self.path_edges.extend_from_slice(&self.pending);
+        for &(p, q) in edges {
+            // Path edges are (smaller, larger) node pairs.
+            let pair = (p.min(q), p.max(q));
+            if p != q && !self.path_edges.contains(&pair) {
+                self.path_edges.push(pair);
+            }
+        }
+        let (copies, opened) = self.open(body);
+        self.keep_pending(body);
+        self.transector.clear_marks();
+        for i in 0..self.path_edges.len() {
+            let (p, q) = self.path_edges[i];
+            self.transector.mark(p);
+            self.transector.mark(q);
+        }
+        for i in 0..self.copies.len() {
+            self.transector.mark(self.copies[i]);
+        }
+        step.copies = copies;
+        step.opened = opened;
+        step.changed = copies > 0 || opened > 0;
+        if step.changed {
+            body.topology_version += 1;
+            body.refresh_diagonals();
+            self.counters.steps += 1;
             self.counters.copies += copies as u64;
             self.counters.opened_edges += opened as u64;
         }

@@ -26,9 +26,11 @@
 
 pub mod cut;
 pub mod refine;
+pub mod tear;
 pub mod transect;
 
 pub use cut::{Cutter, CuttingSettings};
+pub use tear::{Tearer, TearingSettings};
 
 use crate::Vec3;
 use crate::body::{Body, NewNode};

@@ -1,0 +1,310 @@
+//! Tearing (issue 14): a surface spring stretched past `strain` breaks and the surface opens there
+//! with the cut's topology machinery; a bounded number per tick, in a fixed order.
+
+mod common;
+
+use palpa::Vec3;
+use palpa::contact::tool::{JawHold, ToolContact};
+use palpa::topology::cut::check_surface;
+use palpa::world::World;
+
+/// Total mass and momentum of every body.
+fn totals(world: &World) -> (f64, Vec3) {
+    let mut mass = 0.0;
+    let mut momentum = Vec3::zeros();
+    for b in &world.bodies {
+        mass += b.total_mass();
+        momentum += b.rigid.velocity_in_world * b.rigid.mass;
+        for (v, m) in b.surface.velocity_in_world.iter().zip(&b.surface.mass) {
+            momentum += v * *m;
+        }
+    }
+    (mass, momentum)
+}
+
+/// Holds nodes `held` in the grasper's frame (tool 0), as closed jaws holding them would.
+fn hold(world: &mut World, held: &[usize]) {
+    let pose = world.tools[0].pose;
+    for &i in held {
+        let p = world.bodies[0].surface.position_in_world[i];
+        world.bodies[0].surface.tool_contact[i] = ToolContact {
+            tool: 0,
+            part: 0,
+            point_in_tool: pose.to_tool(&p),
+            grasp: Some(JawHold {
+                side: 0.0,
+                half_opening: 0.0,
+            }),
+        };
+    }
+    world.tools[0].grasping = true;
+}
+
+/// A sheet (a 10 cm × 10 cm × 4 mm box, 1 cm grid on its faces) held by stiff links to its fixed
+/// rigid component, pulled up from the centre node of its top face at 5 mm/s from t = 0.1 s.
+fn sheet(tearing: &str) -> String {
+    format!(
+        r#"
+[world]
+gravity = [0.0, 0.0, 0.0]
+dt = 0.001
+
+[[body]]
+name = "sheet"
+mesh = {{ box = {{ size = [0.1, 0.1, 0.004], subdivisions = 9 }} }}
+surface_mass = 0.05
+rigid_mass = 1.0
+surface_stiffness = 5.0
+surface_damping = 0.01
+link_stiffness = 2000.0
+link_damping = 0.5
+fixed = true
+integrator = "implicit"
+{tearing}
+
+[[tool]]
+name = "grasper"
+shape = {{ grasper = {{ jaw_length = 0.004, radius = 0.0005 }} }}
+input = "script"
+script = [
+  {{ t = 0.0, position = [0.0, 0.0, 0.002], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+  {{ t = 0.1, position = [0.0, 0.0, 0.002], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+  {{ t = 4.1, position = [0.0, 0.0, 0.022], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+]
+"#
+    )
+}
+
+#[test]
+fn a_sheet_pulled_from_its_centre_tears_at_the_predicted_displacement() {
+    let strain: f64 = 0.3;
+    let mut world = World::from_scene(&common::scene(&sheet(&format!(
+        "tearing = {{ strain = {strain} }}"
+    ))));
+    let body = &world.bodies[0];
+    // The centre node of the top face.
+    let centre = (0..body.node_count())
+        .min_by(|&a, &b| {
+            let d = |i: usize| {
+                let p = body.surface.position_in_world[i];
+                p.x * p.x + p.y * p.y - p.z
+            };
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap();
+    let start = body.surface.position_in_world[centre];
+    assert!(start.z > 0.0019 && start.x.abs() < 1e-9 && start.y.abs() < 1e-9);
+    // The prediction: the neighbours held by their links, the centre's shortest spring (rest L)
+    // reaches the strain when the centre has risen by L √((1 + strain)² − 1).
+    let e = &body.edges;
+    let shortest = (0..e.len())
+        .filter(|&k| e.a[k] as usize == centre || e.b[k] as usize == centre)
+        .map(|k| e.rest_length[k])
+        .fold(f64::INFINITY, f64::min);
+    let predicted = shortest * ((1.0 + strain) * (1.0 + strain) - 1.0).sqrt();
+    hold(&mut world, &[centre]);
+    let (mass0, _) = totals(&world);
+    let mut first_tear = None;
+    for _ in 0..4200 {
+        let (mass_before, _) = totals(&world);
+        world.step();
+        let (mass_after, _) = totals(&world);
+        if world.counters.tears > 0 {
+            assert!(
+                (mass_after - mass_before).abs() <= 1e-12 * mass_before,
+                "mass {mass_before} → {mass_after} at a tear"
+            );
+            for b in &world.bodies {
+                check_surface(b).unwrap();
+            }
+            if first_tear.is_none() {
+                first_tear = Some(world.bodies[0].surface.position_in_world[centre].z - start.z);
+            }
+        }
+    }
+    let risen = first_tear.expect("the sheet did not tear");
+    let boundary: u32 = world.bodies.iter().map(|b| b.boundary_edges).sum();
+    println!(
+        "sheet: shortest spring {:.3} mm, predicted tear at {:.4} mm, tore at {:.4} mm ({:+.2} %); \
+         {} boundary edges, {} bodies; mass {mass0} → {}",
+        shortest * 1e3,
+        predicted * 1e3,
+        risen * 1e3,
+        100.0 * (risen / predicted - 1.0),
+        boundary,
+        world.bodies.len(),
+        totals(&world).0
+    );
+    assert!(
+        (risen - predicted).abs() <= 0.02 * predicted,
+        "tore at {risen} m, predicted {predicted} m"
+    );
+    assert!(boundary > 0);
+    assert!((totals(&world).0 - mass0).abs() <= 1e-12 * mass0);
+}
+
+/// An organ held in place (fixed rigid component) pulled up by a grasper holding the nodes at its top.
+fn pulled_organ(tearing: &str) -> String {
+    format!(
+        r#"
+[world]
+gravity = [0.0, 0.0, -9.81]
+dt = 0.001
+
+[[body]]
+name = "organ"
+mesh = {{ icosphere = {{ radius = 0.03, subdivisions = 3 }} }}
+surface_mass = 0.2
+rigid_mass = 1.0
+surface_stiffness = 40.0
+surface_damping = 0.05
+link_stiffness = 200.0
+link_damping = 0.2
+fixed = true
+integrator = "implicit"
+{tearing}
+
+[[tool]]
+name = "grasper"
+shape = {{ grasper = {{ jaw_length = 0.006, radius = 0.001 }} }}
+input = "script"
+script = [
+  {{ t = 0.0, position = [0.0, 0.0, 0.031], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+  {{ t = 0.1, position = [0.0, 0.0, 0.031], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+  {{ t = 3.1, position = [0.0, 0.0, 0.061], orientation = [1.0, 0.0, 0.0, 0.0], jaw = 0.0 }},
+]
+"#
+    )
+}
+
+struct Pull {
+    /// Vertical feedback force each tick (N, the tissue pulling the grasper down: negative).
+    force: Vec<f64>,
+    /// First tick a spring tore, if any.
+    first_tear: Option<usize>,
+    boundary: u32,
+    bodies: usize,
+    /// Largest rise of the total energy over a tear tick beyond the tool's work (J), on ticks
+    /// without and with a transection.
+    worst_gain: f64,
+    worst_transection_gain: f64,
+}
+
+fn pull(tearing: &str) -> Pull {
+    let mut world = World::from_scene(&common::scene(&pulled_organ(tearing)));
+    let body = &world.bodies[0];
+    let held: Vec<usize> = (0..body.node_count())
+        .filter(|&i| body.surface.position_in_world[i].z > 0.0285)
+        .collect();
+    assert!(held.len() >= 3, "{} nodes held", held.len());
+    hold(&mut world, &held);
+    let mut force = Vec::new();
+    let mut first_tear = None;
+    let mut worst_gain: f64 = 0.0;
+    let mut worst_transection_gain: f64 = 0.0;
+    let gravity = world.params.gravity;
+    let energy = |world: &World| -> f64 {
+        world
+            .bodies
+            .iter()
+            .map(|b| palpa::dynamics::guard::body_energy(b, &gravity))
+            .sum()
+    };
+    for tick in 0..3200 {
+        let (mass_before, _) = totals(&world);
+        let before = energy(&world);
+        world.step();
+        force.push(world.tools[0].feedback.force_in_world.z);
+        if world.counters.tears > 0 {
+            first_tear.get_or_insert(tick);
+            let (mass_after, _) = totals(&world);
+            assert!((mass_after - mass_before).abs() <= 1e-12 * mass_before);
+            for b in &world.bodies {
+                check_surface(b).unwrap();
+            }
+            // The tool's work this tick: the tissue's force on it along its motion, reversed.
+            let t = &world.tools[0];
+            let work = -t
+                .feedback
+                .force_in_world
+                .dot(&(t.pose.position_in_world - t.previous_pose.position_in_world));
+            let gain = energy(&world) - before - work.abs();
+            if world.counters.transections == 0 {
+                worst_gain = worst_gain.max(gain);
+            } else {
+                worst_transection_gain = worst_transection_gain.max(gain);
+            }
+        }
+    }
+    Pull {
+        force,
+        first_tear,
+        boundary: world.bodies.iter().map(|b| b.boundary_edges).sum(),
+        bodies: world.bodies.len(),
+        worst_gain,
+        worst_transection_gain,
+    }
+}
+
+#[test]
+fn a_grasper_pulling_an_organ_tears_it_and_the_force_drops() {
+    let torn = pull("tearing = { strain = 0.4 }");
+    let whole = pull("");
+    let tick = torn.first_tear.expect("nothing tore");
+    // The felt pull (the tissue drags the grasper down: −z).
+    let pull_at = |p: &Pull, t: usize| -p.force[t];
+    let peak = (0..=tick).map(|t| pull_at(&torn, t)).fold(0.0, f64::max);
+    // The release: the least pull within 0.5 s after the first tear.
+    let after = (tick..tick + 500)
+        .map(|t| pull_at(&torn, t))
+        .fold(f64::INFINITY, f64::min);
+    let untorn = pull_at(&whole, tick + 500);
+    println!(
+        "organ pulled 3 cm: first tear at tick {tick} (pull {:.3} N), peak {:.3} N, least within \
+         0.5 s after {:.3} N ({} boundary edges, {} bodies at the end; largest energy gain over a \
+         tear {:.3e} J, over a tear that separated a piece {:.3e} J); without tearing: {:.3} N \
+         0.5 s after, {} boundary edges",
+        pull_at(&torn, tick),
+        peak,
+        after,
+        torn.boundary,
+        torn.bodies,
+        torn.worst_gain,
+        torn.worst_transection_gain,
+        untorn,
+        whole.boundary
+    );
+    assert!(whole.first_tear.is_none() && whole.boundary == 0);
+    assert!(torn.boundary > 0);
+    // Rise, then release: within 0.5 s of the first tear the pull falls well below its peak, and
+    // below the same pull on the organ that does not tear.
+    assert!(peak > 0.5, "peak {peak} N");
+    assert!(after < 0.7 * peak, "after {after} N, peak {peak} N");
+    assert!(after < 0.5 * untorn, "after {after} N, untorn {untorn} N");
+    assert!(
+        torn.worst_gain <= 1e-9,
+        "energy gained at a tear: {} J",
+        torn.worst_gain
+    );
+}
+
+/// Bad `tearing` keys are refused with the line and what was expected.
+#[test]
+fn bad_tearing_keys_are_refused_clearly() {
+    for (key, expected) in [
+        ("tearing = { strain = 0.0 }", "`strain`"),
+        ("tearing = { ticks = 0 }", "`ticks`"),
+        ("tearing = { max_per_tick = 1000 }", "`max_per_tick`"),
+        ("tearing = { snap = 1.0 }", "unknown field `snap`"),
+    ] {
+        let text = format!("[[body]]\nmesh = {{ icosphere = {{ radius = 0.02 }} }}\n{key}\n");
+        let error = palpa::scene::parse_scene(&text, "bad.toml", &common::repo_root())
+            .err()
+            .unwrap_or_else(|| panic!("{key} accepted"))
+            .to_string();
+        assert!(
+            error.contains("bad.toml:3") && error.contains(expected),
+            "{key}: {error}"
+        );
+    }
+}
