@@ -329,14 +329,6 @@ fn bad_plasticity_keys_are_refused_clearly() {
         ("plasticity = { max = -0.01 }", "`max`"),
         ("plasticity = { flow = 1.0 }", "unknown field `flow`"),
     ] {
-        let text = format!("[[body]]\nmesh = {{ icosphere = {{ radius = 0.02 }} }}\n{key}\n");
-        let error = palpa::scene::parse_scene(&text, "bad.toml", &common::repo_root())
-            .err()
-            .unwrap_or_else(|| panic!("{key} accepted"))
-            .to_string();
-        assert!(
-            error.contains("bad.toml:3") && error.contains(expected),
-            "{key}: {error}"
-        );
+        common::assert_body_key_refused(key, expected);
     }
 }

@@ -297,14 +297,6 @@ fn bad_tearing_keys_are_refused_clearly() {
         ("tearing = { max_per_tick = 1000 }", "`max_per_tick`"),
         ("tearing = { snap = 1.0 }", "unknown field `snap`"),
     ] {
-        let text = format!("[[body]]\nmesh = {{ icosphere = {{ radius = 0.02 }} }}\n{key}\n");
-        let error = palpa::scene::parse_scene(&text, "bad.toml", &common::repo_root())
-            .err()
-            .unwrap_or_else(|| panic!("{key} accepted"))
-            .to_string();
-        assert!(
-            error.contains("bad.toml:3") && error.contains(expected),
-            "{key}: {error}"
-        );
+        common::assert_body_key_refused(key, expected);
     }
 }

@@ -578,6 +578,13 @@ impl Cutter {
         }
         self.collect_tips(tool);
         // 4. Open the surface along the path.
+        self.open_path(body, &mut step);
+        step
+    }
+
+    /// Opens `path_edges` (see [`Cutter::open`]), keeps what cannot open yet pending, marks the path
+    /// for the transection and counts the step (its `splits` already set).
+    fn open_path(&mut self, body: &mut Body, step: &mut CutStep) {
         let (copies, opened) = self.open(body);
         self.keep_pending(body);
         self.transector.clear_marks();
@@ -600,7 +607,6 @@ impl Cutter {
             self.counters.copies += copies as u64;
             self.counters.opened_edges += opened as u64;
         }
-        step
     }
 
     /// Opens `edges` (springs that tore: pairs of nodes of the current mesh, each an edge of two
@@ -631,27 +637,7 @@ impl Cutter {
                 self.path_edges.push(pair);
             }
         }
-        let (copies, opened) = self.open(body);
-        self.keep_pending(body);
-        self.transector.clear_marks();
-        for i in 0..self.path_edges.len() {
-            let (p, q) = self.path_edges[i];
-            self.transector.mark(p);
-            self.transector.mark(q);
-        }
-        for i in 0..self.copies.len() {
-            self.transector.mark(self.copies[i]);
-        }
-        step.copies = copies;
-        step.opened = opened;
-        step.changed = copies > 0 || opened > 0;
-        if step.changed {
-            body.topology_version += 1;
-            body.refresh_diagonals();
-            self.counters.steps += 1;
-            self.counters.copies += copies as u64;
-            self.counters.opened_edges += opened as u64;
-        }
+        self.open_path(body, &mut step);
         step
     }
 

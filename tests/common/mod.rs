@@ -219,3 +219,17 @@ pub fn trace_column(text: &str, name: &str) -> Vec<f64> {
         .map(|l| l.split(',').nth(column).unwrap().parse::<f64>().unwrap())
         .collect()
 }
+
+/// Asserts that a body with `key` (a line of a `[[body]]` table) is refused at line 3 of the scene
+/// with a message containing `expected`.
+pub fn assert_body_key_refused(key: &str, expected: &str) {
+    let text = format!("[[body]]\nmesh = {{ icosphere = {{ radius = 0.02 }} }}\n{key}\n");
+    let error = palpa::scene::parse_scene(&text, "bad.toml", &repo_root())
+        .err()
+        .unwrap_or_else(|| panic!("{key} accepted"))
+        .to_string();
+    assert!(
+        error.contains("bad.toml:3") && error.contains(expected),
+        "{key}: {error}"
+    );
+}
