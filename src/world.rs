@@ -758,7 +758,7 @@ impl World {
             } else if tool.part_count >= 2 && tool.jaw <= settings.grasp_below {
                 let mut touching = [false; 2];
                 for body in &self.bodies {
-                    jaws_touch(&body.surface, index, &mut touching);
+                    jaws_touch(&body.surface, index, tool, &mut touching);
                 }
                 if touching[0] && touching[1] {
                     for body in &mut self.bodies {

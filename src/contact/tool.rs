@@ -76,6 +76,32 @@ impl JawHold {
     }
 }
 
+/// Whether `point_in_tool` (tool frame), touching jaw `part` (0 or 1) of a grasper whose half
+/// opening is `half` (rad), lies between the jaws: along that jaw between its hinge and its tip, and
+/// on the inner side of both jaws' outer faces (less than half a jaw radius past either jaw's axis
+/// outwards). Tissue there is what closing jaws pinch; a node on a jaw's outer face (a radius past its
+/// axis outwards) or beyond its tip is not.
+pub fn between_jaws(tool: &Tool, part: usize, point_in_tool: &Vec3, half: f64) -> bool {
+    let jaw = &tool.parts_in_tool[0];
+    let (length, radius) = ((jaw.b - jaw.a).norm(), jaw.radius);
+    let half = half.max(0.0);
+    let (s, c) = (crate::math::sin(half), crate::math::cos(half));
+    let p = point_in_tool;
+    let mut inside = true;
+    for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
+        // Jaw k's axis: through `sign · radius · (c, 0, −sign · s)` along `(sign · s, 0, c)`;
+        // `inward` points from it towards the other jaw.
+        let along = Vec3::new(sign * s, 0.0, c);
+        let inward = Vec3::new(-sign * c, 0.0, s);
+        let t = p.dot(&along);
+        if k == part && (t <= 0.0 || t > length) {
+            return false;
+        }
+        inside &= p.dot(&inward) + radius > -0.5 * radius;
+    }
+    inside
+}
+
 impl Default for ToolContact {
     fn default() -> Self {
         Self {
@@ -150,7 +176,15 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
         let normal_force = -normal_component;
         let tangential_force = force - normal * normal_component;
         let mass = surface.mass[i];
-        let held_at = tool.pose.to_world(&contact.point_in_tool);
+        // The point of the tool it sits on, carried by the tool's motion — and, on a grasper's jaw,
+        // by the jaw's turn about the hinge over the tick.
+        let point_in_tool = if tool.grasp.is_some() && part < 2 {
+            JawHold::on_part(part, 0.5 * tool.previous_jaw.max(0.0))
+                .point_now(&contact.point_in_tool, 0.5 * tool.jaw.max(0.0))
+        } else {
+            contact.point_in_tool
+        };
+        let held_at = tool.pose.to_world(&point_in_tool);
         let tool_point_velocity = (held_at - start) / dt;
         // Relative tangential velocity the node would have without friction this tick.
         let relative = surface.velocity_in_world[i] - tool_point_velocity;
@@ -322,8 +356,12 @@ fn try_capture(
         tool: tool_index as u32,
         part: part as u32,
         point_in_tool: tool.pose.to_tool(&end),
-        // A node that meets the jaws of a grasper that holds is held with them.
-        grasp: (tool.grasping && part < 2).then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
+        // A node that meets the jaws of a grasper that holds, between them, is held with them (one
+        // that meets a jaw's outer face is an ordinary contact).
+        grasp: (tool.grasping
+            && part < 2
+            && between_jaws(tool, part, &tool.pose.to_tool(&end), 0.5 * tool.jaw))
+        .then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
     };
     surface.next_position_in_world[i] = end;
     surface.velocity_in_world[i] = (end - start) / dt;
@@ -452,9 +490,14 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f
 }
 
 /// Whether both jaws of grasper `tool` (index `index`) touch the surface (contacts of the last tick).
-pub fn jaws_touch(surface: &Surface, index: usize, touching: &mut [bool; 2]) {
+pub fn jaws_touch(surface: &Surface, index: usize, tool: &Tool, touching: &mut [bool; 2]) {
+    let half = 0.5 * tool.previous_jaw;
     for c in &surface.tool_contact {
-        if c.tool == index as u32 && c.grasp.is_none() && (c.part as usize) < 2 {
+        if c.tool == index as u32
+            && c.grasp.is_none()
+            && (c.part as usize) < 2
+            && between_jaws(tool, c.part as usize, &c.point_in_tool, half)
+        {
             touching[c.part as usize] = true;
         }
     }
@@ -469,7 +512,10 @@ pub fn grasp_nodes(surface: &mut Surface, index: usize, tool: &Tool, reach: f64)
     for i in 0..surface.tool_contact.len() {
         let contact = &mut surface.tool_contact[i];
         if contact.tool == index as u32 {
-            if (contact.part as usize) < 2 && contact.grasp.is_none() {
+            if (contact.part as usize) < 2
+                && contact.grasp.is_none()
+                && between_jaws(tool, contact.part as usize, &contact.point_in_tool, half)
+            {
                 contact.grasp = Some(JawHold::on_part(contact.part as usize, half));
                 grasped += 1;
             }
@@ -487,7 +533,7 @@ pub fn grasp_nodes(surface: &mut Surface, index: usize, tool: &Tool, reach: f64)
             distance(&tool.parts_start[1]),
         );
         let part = if d1 < d0 { 1 } else { 0 };
-        if d0.min(d1) <= reach {
+        if d0.min(d1) <= reach && between_jaws(tool, part, &tool.previous_pose.to_tool(&p), half) {
             *contact = ToolContact {
                 tool: index as u32,
                 part: part as u32,

@@ -34,7 +34,8 @@ pub enum ToolShape {
         /// m.
         length: f64,
     },
-    /// A grasper: two jaws hinged at the tip, each a rounded segment of `jaw_length` pointing along +z
+    /// A grasper: two jaws hinged at the tip, each a rounded segment of `jaw_length` pointing along +z,
+    /// its axis a radius to the side of the tool's (so that closed jaws meet along their inner faces),
     /// and rotated by ± half the opening about the tool's y axis, plus a shaft behind the hinge.
     Grasper {
         /// Length of each jaw (m).
@@ -152,12 +153,16 @@ impl ToolShape {
                 shaft_length,
             } => {
                 let half = 0.5 * jaw.max(0.0);
+                let (s, c) = (crate::math::sin(half), crate::math::cos(half));
                 for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
-                    let direction =
-                        Vec3::new(sign * crate::math::sin(half), 0.0, crate::math::cos(half));
+                    // Each jaw's axis lies a radius off the tool's axis, so that closed jaws (opening
+                    // 0) meet along their inner faces, as a real grasper's do; the jaw turns about
+                    // the tool's y axis through the tip.
+                    let direction = Vec3::new(sign * s, 0.0, c);
+                    let offset = Vec3::new(sign * radius * c, 0.0, -radius * s);
                     parts[k] = CapsulePart {
-                        a: Vec3::zeros(),
-                        b: direction * jaw_length,
+                        a: offset,
+                        b: offset + direction * jaw_length,
                         radius,
                     };
                 }

@@ -202,9 +202,16 @@ impl Refinement {
                     tool: tool_index as u32,
                     part: part as u32,
                     point_in_tool: tool.pose.to_tool(&on_surface),
-                    // Under the jaws of a grasper that holds: held with them.
-                    grasp: (tool.grasping && part < 2)
-                        .then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
+                    // Between the jaws of a grasper that holds: held with them.
+                    grasp: (tool.grasping
+                        && part < 2
+                        && crate::contact::tool::between_jaws(
+                            tool,
+                            part,
+                            &tool.pose.to_tool(&on_surface),
+                            0.5 * tool.jaw,
+                        ))
+                    .then(|| JawHold::on_part(part, 0.5 * tool.jaw.max(0.0))),
                 };
                 // A position correction, like the projection of a penetrating node: the node keeps
                 // the velocity its corners gave it (momentum), it does not fly out of the tool.

@@ -8,7 +8,9 @@
 //! then by index), and at most `max_per_tick` of them break, so the result is deterministic and the
 //! tick bounded. A spring between two inner nodes with no opening next to it cannot open alone (a
 //! slit of one edge separates nothing): it breaks together with the most stretched inner spring that
-//! continues it from either end, the crack's first two edges.
+//! continues it from either end, the crack's first two edges. A spring whose two ends a grasper holds
+//! does not tear: the jaws keep the tissue between them (their squeeze is no pull), and it tears
+//! around the grasp.
 //!
 //! Mass and momentum are conserved by construction (copies split a node's mass and move with it);
 //! the elastic energy of a torn spring stays in its two lips (each of half its stiffness), so a tear
@@ -103,10 +105,17 @@ impl Tearer {
         self.picked.clear();
         let threshold = self.settings.strain;
         let x = &body.surface.position_in_world;
+        let held = &body.surface.tool_contact;
         let e = &body.edges;
         for k in 0..self.over.len() {
             let rest = e.rest_length[k];
             if self.over[k] == LIP || e.stiffness[k] <= 0.0 || rest <= 0.0 {
+                continue;
+            }
+            // Tissue held in a grasper's jaws at both ends is kept by the jaws (their squeeze is not
+            // a pull): it tears around the grasp, not inside it.
+            if held[e.a[k] as usize].grasp.is_some() && held[e.b[k] as usize].grasp.is_some() {
+                self.over[k] = 0;
                 continue;
             }
             let length = (x[e.b[k] as usize] - x[e.a[k] as usize]).norm();
