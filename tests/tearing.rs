@@ -300,3 +300,70 @@ fn bad_tearing_keys_are_refused_clearly() {
         common::assert_body_key_refused(key, expected);
     }
 }
+
+/// `scenes/tear.toml`: the closing jaws grasp the organ's top, the pull tears it (edges open, shreds
+/// become bodies, the pull drops at a tear), with mass conserved, the surface a manifold and no
+/// orphan node at every tick, no negative energy; and the session replays bit for bit.
+#[test]
+fn the_tear_scene_grasps_pulls_and_tears_and_replays_bit_for_bit() {
+    let path = common::repo_root().join("scenes/tear.toml");
+    let scene = palpa::scene::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mut world = World::from_scene(&scene);
+    let (mass_before, _) = totals(&world);
+    let mut grasped = 0;
+    let mut pull: Vec<f64> = Vec::new();
+    let mut tears = 0;
+    let mut largest_drop: f64 = 0.0;
+    for _ in 0..2500 {
+        world.step();
+        let tool = &world.tools[0];
+        grasped = grasped.max(tool.feedback.grasped);
+        pull.push(-tool.feedback.force_in_world.z);
+        // The step's counters: springs torn this tick.
+        if world.counters.tears > 0 {
+            tears += world.counters.tears;
+            let (mass, _) = totals(&world);
+            assert!((mass - mass_before).abs() <= 1e-12 * mass_before);
+            for b in &world.bodies {
+                check_surface(b).unwrap_or_else(|e| panic!("{}: {e}", b.name));
+            }
+            // The pull in the tick of a tear against the tick before.
+            let n = pull.len();
+            if n >= 2 && world.tools[0].grasping {
+                largest_drop = largest_drop.max(pull[n - 2] - pull[n - 1]);
+            }
+        }
+        for b in &world.bodies {
+            assert!(
+                b.kinetic_energy() >= 0.0,
+                "{}: negative kinetic energy",
+                b.name
+            );
+        }
+    }
+    let boundary: u32 = world.bodies.iter().map(|b| b.boundary_edges).sum();
+    println!(
+        "tear.toml 2.5 s: {grasped} nodes grasped, {} tears, {boundary} boundary edges, {} bodies, \
+         largest drop of the pull at a tear {largest_drop:.3} N, pull at 2.5 s {:.3} N",
+        tears,
+        world.bodies.len(),
+        pull.last().unwrap()
+    );
+    assert!(grasped >= 4, "{grasped} nodes grasped");
+    assert!(boundary > 0 && world.bodies.len() >= 2);
+    assert!(largest_drop > 0.2, "no drop of the pull at a tear");
+    let dir = std::env::temp_dir().join(format!("palpa-tear-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let trace = common::session_replays(&path, "2.5", &dir);
+    assert!(
+        common::trace_column(&trace, "boundary_edges")
+            .iter()
+            .any(|&b| b > 0.0)
+    );
+    assert!(
+        common::trace_column(&trace, "guard_events")
+            .iter()
+            .all(|&g| g == 0.0)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

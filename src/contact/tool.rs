@@ -77,17 +77,18 @@ impl JawHold {
 }
 
 /// Whether `point_in_tool` (tool frame), touching jaw `part` (0 or 1) of a grasper whose half
-/// opening is `half` (rad), lies between the jaws: along that jaw between its hinge and its tip, and
-/// on the inner side of both jaws' outer faces (less than half a jaw radius past either jaw's axis
-/// outwards). Tissue there is what closing jaws pinch; a node on a jaw's outer face (a radius past its
-/// axis outwards) or beyond its tip is not.
+/// opening is `half` (rad), lies between the jaws: along that jaw between its hinge and its tip,
+/// within the jaws' width of their plane (|y| below 0.7 radius), and on the inner side of both jaws'
+/// outer faces (less than half a jaw radius past either jaw's axis outwards). Tissue there is what
+/// closing jaws pinch; a node on a jaw's outer face (a radius past its axis outwards), on its flank
+/// or beyond its tip is not.
 pub fn between_jaws(tool: &Tool, part: usize, point_in_tool: &Vec3, half: f64) -> bool {
     let jaw = &tool.parts_in_tool[0];
     let (length, radius) = ((jaw.b - jaw.a).norm(), jaw.radius);
     let half = half.max(0.0);
     let (s, c) = (crate::math::sin(half), crate::math::cos(half));
     let p = point_in_tool;
-    let mut inside = true;
+    let mut inside = p.y.abs() < 0.7 * radius;
     for (k, sign) in [1.0, -1.0].into_iter().enumerate() {
         // Jaw k's axis: through `sign · radius · (c, 0, −sign · s)` along `(sign · s, 0, c)`;
         // `inward` points from it towards the other jaw.

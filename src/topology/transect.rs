@@ -798,16 +798,38 @@ fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64) -> Vec3 {
     let s = &mut piece.surface;
     let (volume, first, second) = solid_moments(&s.homologue_in_body, &s.triangles);
     let surface_mass: f64 = s.mass.iter().sum();
-    let (origin, inertia) = if volume > 0.0 && volume.is_finite() {
-        let c = first / volume;
-        (c, inertia_about(volume, &first, &second, mass, &c))
+    // The enclosed solid's inertia, when the piece encloses one: an open piece's moments need not
+    // give a positive definite tensor (its "volume" is not a solid's), and then it is not used.
+    let solid = (volume > 0.0 && volume.is_finite())
+        .then(|| {
+            let c = first / volume;
+            (c, inertia_about(volume, &first, &second, mass, &c))
+        })
+        .filter(|(_, inertia)| inertia.symmetric_eigenvalues().min() > 0.0);
+    let (origin, inertia) = if let Some(solid) = solid {
+        solid
     } else {
-        // Not closed: the surface's centre of mass and a point mass's isotropic inertia.
+        // Not closed (a shred whose opening could not be capped): the surface's centre of mass, and
+        // the inertia of the rigid mass spread as the surface's is (over its homologues), with an
+        // isotropic floor of a tenth of its polar part so that a flat or thin shred stays invertible.
         let mut c = Vec3::zeros();
         for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
             c += h * *m;
         }
-        (c / surface_mass, Matrix3::identity() * mass)
+        let c = c / surface_mass;
+        let mut inertia = Matrix3::zeros();
+        for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
+            let r = h - c;
+            inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * *m;
+        }
+        inertia *= mass / surface_mass;
+        let floor = 0.05 * inertia.trace();
+        let floor = if floor > 0.0 && floor.is_finite() {
+            floor
+        } else {
+            mass * 1e-6
+        };
+        (c, inertia + Matrix3::identity() * floor)
     };
     for h in &mut s.homologue_in_body {
         *h -= origin;
@@ -823,4 +845,38 @@ fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64) -> Vec3 {
     r.position_in_world = parent.position_in_world + parent.world_from_body * origin;
     r.fixed = piece.params.fixed;
     origin
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::{BodyParams, Placement};
+
+    /// A shred whose opening was not capped (an open patch of a sphere) gets a rigid component with
+    /// an inertia in kg·m² of its own size, positive definite, not a unit-radius point mass's.
+    #[test]
+    fn an_open_shred_gets_the_inertia_of_its_own_spread() {
+        let mesh = crate::scene::mesh::icosphere(0.01, 1);
+        let mut body = Body::new(
+            "shred",
+            &mesh,
+            &BodyParams::default(),
+            &Placement::default(),
+        );
+        // Keep the triangles of the cap z > 0.005 only (the rest of the nodes keep their places).
+        let x = body.surface.homologue_in_body.clone();
+        body.surface
+            .triangles
+            .retain(|t| t.iter().all(|&v| x[v as usize].z > 0.005));
+        assert!(!body.surface.triangles.is_empty());
+        let parent = body.rigid.clone();
+        rebase_rigid(&mut body, &parent, 0.01);
+        let inertia = body.rigid.inertia_in_body;
+        let eigen = inertia.symmetric_eigenvalues();
+        let largest = eigen.max();
+        // Nodes lie within 1 cm of the centre: the inertia of 10 g is below 0.01 × (0.02 m)².
+        assert!(largest < 0.01 * 0.02 * 0.02, "{inertia}");
+        assert!(eigen.min() > 0.0, "{inertia}");
+        assert!((body.rigid.inverse_inertia_in_body * inertia - Matrix3::identity()).norm() < 1e-9);
+    }
 }
