@@ -46,6 +46,9 @@ enum Cmd {
     /// Tick time while a blade cuts a 2 562-node organ, against no cut; incision step and
     /// transection costs.
     Cut(CutArgs),
+    /// Tick time while a grasper lifts a 2 562-node organ and while a grasper tears an organ,
+    /// against the same scenes without the grasp or the tearing.
+    Grasp(GraspArgs),
     /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
     /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
     #[command(hide = true)]
@@ -92,6 +95,16 @@ struct ScalingArgs {
 }
 
 #[derive(Args)]
+struct GraspArgs {
+    /// Output directory.
+    #[arg(long, default_value = "bench-out")]
+    out: PathBuf,
+    /// One repetition instead of three: a smoke test.
+    #[arg(long)]
+    quick: bool,
+}
+
+#[derive(Args)]
 struct CutArgs {
     /// Output directory.
     #[arg(long, default_value = "bench-out")]
@@ -112,6 +125,7 @@ fn main() -> Result<()> {
         Cmd::Latency(args) => latency(args),
         Cmd::Scaling(args) => scaling(args),
         Cmd::Cut(args) => cut(args),
+        Cmd::Grasp(args) => grasp(args),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
@@ -797,6 +811,97 @@ fn spread_of(mut values: Vec<f64>) -> serde_json::Value {
         "p999_us": percentile(&values, 0.999),
         "max_us": values.last().copied().unwrap_or(f64::NAN),
     })
+}
+
+/// Tick times (µs) of `text` (a scene) over the ticks `window`.
+fn scene_ticks(text: &str, name: &str, window: std::ops::Range<u64>) -> Result<Vec<f64>> {
+    let scene = palpa::scene::parse_scene(text, name, Path::new("."))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut world = World::from_scene(&scene);
+    let mut ticks = Vec::with_capacity(window.end as usize);
+    for tick in 1..window.end {
+        let start = Instant::now();
+        world.step();
+        let elapsed = start.elapsed().as_secs_f64() * 1e6;
+        if window.contains(&tick) {
+            ticks.push(elapsed);
+        }
+    }
+    Ok(ticks)
+}
+
+fn grasp(args: GraspArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let reps = if args.quick { 1 } else { 3 };
+    // Grasp and lift: scenes/grasp_lift.toml with a 2 562-node organ, from the jaws closing to the
+    // end of the hold; without: the same jaws coming down and going up open.
+    // (Its surface mass raised with the node count, as in `palpa-bench cut`, so that each node
+    // stays as heavy as the 162-node scene's within a factor of 2.)
+    let lift = include_str!("../../scenes/grasp_lift.toml")
+        .replace("subdivisions = 2", "subdivisions = 4")
+        .replace("surface_mass = 0.03", "surface_mass = 0.25");
+    let lift_open = lift.replace("jaw = 0.0 }", "jaw = 1.2 }");
+    let tear = include_str!("../../scenes/tear.toml").to_string();
+    let tear_off = tear.replace(
+        "tearing = { strain = 0.4 }",
+        "tearing = { enabled = false }",
+    );
+    let cases = [
+        ("grasp_lift", &lift, 2000..8800),
+        ("open_jaws", &lift_open, 2000..8800),
+        ("tear", &tear, 1000..4200),
+        ("no_tearing", &tear_off, 1000..4200),
+    ];
+    let mut progress = Progress::new("grasp", cases.len() * reps);
+    let mut pooled: Vec<Vec<f64>> = vec![Vec::new(); cases.len()];
+    for _ in 0..reps {
+        for (k, (name, text, window)) in cases.iter().enumerate() {
+            pooled[k].extend(scene_ticks(text, name, window.clone())?);
+            progress.step(name);
+        }
+    }
+    let command = format!(
+        "palpa-bench grasp{} --out {}",
+        if args.quick { " --quick" } else { "" },
+        args.out.display()
+    );
+    let mut result = serde_json::Map::new();
+    result.insert("command".into(), json!(command));
+    result.insert("date".into(), json!(today()));
+    result.insert("machine".into(), json!(machine()));
+    result.insert("repetitions".into(), json!(reps));
+    let mut md = format!(
+        "# palpa-bench grasp\n\n`{command}` — {} — {}\n\n\
+         *grasp_lift*: `scenes/grasp_lift.toml` with a 2 562-node organ (surface mass 0.25 kg), ticks 2 000–8 800 (jaws \
+         closing, lift, 5 s hold); *open_jaws*: the same with the jaws kept open. *tear*: \
+         `scenes/tear.toml` (642 nodes), ticks 1 000–4 200 (grasp and pull); *no_tearing*: the same \
+         with tearing off. {reps} run(s) each, pooled.\n\n\
+         | scene | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+        today(),
+        machine()
+    );
+    for ((name, _, _), ticks) in cases.iter().zip(pooled) {
+        let v = spread_of(ticks);
+        md += &format!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            v["samples"],
+            v["mean_us"].as_f64().unwrap_or(f64::NAN),
+            v["p50_us"].as_f64().unwrap_or(f64::NAN),
+            v["p99_us"].as_f64().unwrap_or(f64::NAN),
+            v["p999_us"].as_f64().unwrap_or(f64::NAN),
+            v["max_us"].as_f64().unwrap_or(f64::NAN),
+        );
+        result.insert(name.to_string(), v);
+    }
+    std::fs::write(
+        args.out.join("grasp.json"),
+        serde_json::to_string_pretty(&serde_json::Value::Object(result))?,
+    )?;
+    std::fs::write(args.out.join("grasp.md"), &md)?;
+    print!("{md}");
+    Ok(())
 }
 
 fn cut(args: CutArgs) -> Result<()> {
