@@ -470,7 +470,11 @@ mod tests {
         let mut parts = [CapsulePart::default(); MAX_PARTS];
         assert_eq!(shape.parts_in_tool(0.6, &mut parts), 3);
         assert!((parts[0].b.x + parts[1].b.x).abs() < 1e-15);
-        let opening = parts[0].b.angle(&parts[1].b);
+        let opening = (parts[0].b - parts[0].a).angle(&(parts[1].b - parts[1].a));
         assert!((opening - 0.6).abs() < 1e-12);
+        // Closed, the jaws lie side by side and meet along their inner faces (at x = 0).
+        shape.parts_in_tool(0.0, &mut parts);
+        assert!((parts[0].a.x - 0.002).abs() < 1e-15 && (parts[1].a.x + 0.002).abs() < 1e-15);
+        assert!((parts[0].b.x - 0.002).abs() < 1e-15 && parts[0].b.z == 0.02);
     }
 }
