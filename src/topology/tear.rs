@@ -73,6 +73,8 @@ pub struct Tearer {
     picked: Vec<(f64, u32)>,
     /// The edges one break opens.
     path: Vec<(u32, u32)>,
+    /// The cutter's transection count when `over` was last valid.
+    transections_seen: u64,
 }
 
 /// Mark in `over` of a spring that cannot tear (a lip).
@@ -88,6 +90,7 @@ impl Tearer {
             over: Vec::with_capacity(edges),
             picked: Vec::with_capacity(settings.max_per_tick),
             path: Vec::with_capacity(2),
+            transections_seen: 0,
         }
     }
 
@@ -96,9 +99,11 @@ impl Tearer {
     pub fn step(&mut self, body: &mut Body, cutter: &mut Cutter) -> CutStep {
         let mut total = CutStep::default();
         let edge_count = body.edges.len().min(self.over.capacity());
-        if edge_count < self.over.len() {
-            // Springs were removed (coarsening, a transection's renumbering): counts start again.
+        if edge_count < self.over.len() || cutter.counters.transections != self.transections_seen {
+            // Springs were removed or renumbered (coarsening; a transection, whose caps may add as
+            // many springs as the pieces took away): counts and marks start again.
             self.over.clear();
+            self.transections_seen = cutter.counters.transections;
         }
         // Cuts and tears append springs and keep the numbers of the others.
         self.over.resize(edge_count, 0);
