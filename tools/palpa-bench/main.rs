@@ -800,6 +800,19 @@ fn run_transection() -> Result<(f64, f64, u64, usize)> {
     bail!("the transection scene's tube was not cut through in 2 s")
 }
 
+/// One markdown table row of a [`spread_of`] summary.
+fn spread_row(name: &str, v: &serde_json::Value) -> String {
+    format!(
+        "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+        v["samples"],
+        v["mean_us"].as_f64().unwrap_or(f64::NAN),
+        v["p50_us"].as_f64().unwrap_or(f64::NAN),
+        v["p99_us"].as_f64().unwrap_or(f64::NAN),
+        v["p999_us"].as_f64().unwrap_or(f64::NAN),
+        v["max_us"].as_f64().unwrap_or(f64::NAN),
+    )
+}
+
 fn spread_of(mut values: Vec<f64>) -> serde_json::Value {
     values.sort_by(f64::total_cmp);
     let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
@@ -884,15 +897,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
     );
     for ((name, _, _), ticks) in cases.iter().zip(pooled) {
         let v = spread_of(ticks);
-        md += &format!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
-            v["samples"],
-            v["mean_us"].as_f64().unwrap_or(f64::NAN),
-            v["p50_us"].as_f64().unwrap_or(f64::NAN),
-            v["p99_us"].as_f64().unwrap_or(f64::NAN),
-            v["p999_us"].as_f64().unwrap_or(f64::NAN),
-            v["max_us"].as_f64().unwrap_or(f64::NAN),
-        );
+        md += &spread_row(name, &v);
         result.insert(name.to_string(), v);
     }
     std::fs::write(
@@ -1032,17 +1037,7 @@ fn cut(args: CutArgs) -> Result<()> {
         )
         .map_err(|e| anyhow::anyhow!(e))?;
     }
-    let row = |name: &str, v: &serde_json::Value| {
-        format!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
-            v["samples"],
-            v["mean_us"].as_f64().unwrap_or(f64::NAN),
-            v["p50_us"].as_f64().unwrap_or(f64::NAN),
-            v["p99_us"].as_f64().unwrap_or(f64::NAN),
-            v["p999_us"].as_f64().unwrap_or(f64::NAN),
-            v["max_us"].as_f64().unwrap_or(f64::NAN),
-        )
-    };
+    let row = spread_row;
     let mut md = format!(
         "# palpa-bench cut\n\n`{command}` — {} — {}\n\n\
          A scalpel draws a 10 cm incision in 1 s across the top of a {}-node organ (multi-rate \
