@@ -286,6 +286,12 @@ fn a_grasper_pulling_an_organ_tears_it_and_the_force_drops() {
         "energy gained at a tear: {} J",
         torn.worst_gain
     );
+    assert!(torn.bodies >= 2, "no piece came apart");
+    assert!(
+        torn.worst_transection_gain <= 1e-9,
+        "energy gained at a tear that separated a piece: {} J",
+        torn.worst_transection_gain
+    );
 }
 
 /// Bad `tearing` keys are refused with the line and what was expected.

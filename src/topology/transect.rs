@@ -9,18 +9,21 @@
 //!    disc), joined by strips that follow the arc-length fraction around the loop, and a fan at the
 //!    centre. Cap triangles traverse the rim edges the other way round from the surface's triangles, so
 //!    the closed part is oriented outwards as the surface was.
-//! 2. **Masses.** A part keeps its surface mass: the cap nodes take their share by rest area
-//!    (`M · a_cap / (A + Σ a_cap)`) and every other node of the part gives the same fraction of its
-//!    mass; cap nodes move with the part's centre-of-mass velocity. Mass and linear momentum are
-//!    conserved to rounding, and kinetic energy does not grow (the cap's momentum is the mean's).
+//!    The cap's springs are born at rest (at their present lengths).
+//! 2. **Masses.** Every cap node is a convex combination of its loop's nodes (the loop's mean and the
+//!    two rim nodes it was resampled between, scaled towards the mean): its rest place, its place and
+//!    its velocity are those combinations, and it takes its mass from the loop's nodes with the same
+//!    weights (the part's surface density times its rest area, scaled down if a rim node would give
+//!    more than half its mass), and link stiffness and damping in proportion. The part's mass, centre
+//!    of mass and momentum do not change; its kinetic, link and spring energies do not grow.
 //! 3. **Bodies.** The part with the largest surface mass stays in the body (its nodes renumbered in
 //!    order); every other part moves into a spare body reserved up front.
 //! 4. **Rigid components.** Each part gets a share of the rigid mass in proportion to its surface mass,
-//!    its frame's origin at the centroid of the solid its closed rest surface encloses, the inertia of
-//!    that solid, the parent's orientation; homologues are re-expressed in the new frame (their world
-//!    positions do not move). Velocities follow the parent's rigid motion at the new origins, shifted
-//!    so that the linear momentum is the parent's exactly; the angular momentum left over from the
-//!    parent's is shared by mass.
+//!    its frame's origin at the centre of mass of its nodes' rest places (so the rigid centre of mass
+//!    does not move), the inertia about it of the solid its closed rest surface encloses, the parent's
+//!    orientation; homologues are re-expressed in the new frame (their world positions do not move).
+//!    Velocities follow the parent's rigid motion at the new origins, so that the linear momentum is
+//!    the parent's exactly; the angular momentum left over from the parent's is shared by mass.
 //!
 //! Scratch is sized with the body's reserved room: a transection allocates nothing. Its cost is that of
 //! a pass over the body's edges and a sort of its half-edges (only on ticks where a cut opened edges,
@@ -71,10 +74,31 @@ pub struct Transector {
     ring: Vec<u32>,
     ring_next: Vec<u32>,
     cap_area: Vec<f64>,
+    /// Where each cap node sits among its loop's nodes (same index as `cap_area`).
+    cap_source: Vec<CapSource>,
+    /// Mass each node of the loop being capped gives to its cap (kg, by position in the loop).
+    loop_demand: Vec<f64>,
+    /// Surface mass per rest area of every part before its caps (kg/m²).
+    part_density: [f64; MAX_PARTS],
     cap_nodes_from: usize,
     parts: usize,
     part_mass: [f64; MAX_PARTS],
 }
+
+/// A cap node as a convex combination of the nodes of its loop (`n` of them): weight `(1 − scale)/n`
+/// on every loop node (the loop's mean), plus `scale · (1 − u)` on loop node `a` and `scale · u` on
+/// loop node `b` (positions in the loop). Its rest place, world place, velocity, mass and link are
+/// all drawn from the loop with these weights.
+#[derive(Clone, Copy, Debug, Default)]
+struct CapSource {
+    scale: f64,
+    a: u32,
+    b: u32,
+    u: f64,
+}
+
+/// Largest fraction of its mass (and link) a loop node gives to its cap.
+const MAX_RIM_SHARE: f64 = 0.5;
 
 /// Union–find root with path halving.
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
@@ -140,6 +164,9 @@ impl Transector {
             ring: Vec::with_capacity(nodes),
             ring_next: Vec::with_capacity(nodes),
             cap_area: Vec::with_capacity(nodes),
+            cap_source: Vec::with_capacity(nodes),
+            loop_demand: Vec::with_capacity(nodes),
+            part_density: [0.0; MAX_PARTS],
             cap_nodes_from: 0,
             parts: 0,
             part_mass: [0.0; MAX_PARTS],
@@ -252,22 +279,35 @@ impl Transector {
         {
             return result;
         }
-        // Part masses and momenta before the caps.
+        // Part masses before the caps.
         let n0 = body.node_count();
-        let mut momentum = [Vec3::zeros(); MAX_PARTS];
         self.part_mass = [0.0; MAX_PARTS];
         for v in 0..n0 {
-            let p = self.part[v] as usize;
-            let m = body.surface.mass[v];
-            self.part_mass[p] += m;
-            momentum[p] += body.surface.velocity_in_world[v] * m;
+            self.part_mass[self.part[v] as usize] += body.surface.mass[v];
         }
-        // 1. Caps.
+        // Surface density of every part (rest area), the caps' mass target.
+        let mut part_area = [0.0f64; MAX_PARTS];
+        {
+            let h = &body.surface.homologue_in_body;
+            for t in &body.surface.triangles {
+                part_area[self.part[t[0] as usize] as usize] +=
+                    triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
+            }
+        }
+        for p in 0..self.parts {
+            self.part_density[p] = if part_area[p] > 0.0 {
+                self.part_mass[p] / part_area[p]
+            } else {
+                0.0
+            };
+        }
+        // 1. Caps (each takes its mass, velocity and links from its own loop).
         self.boundary_next(body);
         self.visited.clear();
         self.visited.resize(n0, false);
         self.cap_nodes_from = n0;
         self.cap_area.clear();
+        self.cap_source.clear();
         for i in 0..self.marked_list.len() {
             let s = self.marked_list[i];
             if (s as usize) >= n0 || self.visited[s as usize] || self.next[s as usize] == NONE {
@@ -299,50 +339,19 @@ impl Transector {
                 result.caps_refused += 1;
             }
         }
-        // 2. Masses: cap nodes by rest area, the rest of each part scaled to make room.
         let n1 = body.node_count();
-        let mut part_area = [0.0f64; MAX_PARTS];
-        let mut part_cap = [0.0f64; MAX_PARTS];
-        {
-            let h = &body.surface.homologue_in_body;
-            for t in &body.surface.triangles {
-                if (t[0] as usize) < n0 && (t[1] as usize) < n0 && (t[2] as usize) < n0 {
-                    part_area[self.part[t[0] as usize] as usize] +=
-                        triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
-                }
+        // The parent's rigid origin is off its surface's centre of mass by `offset` (rounding, or
+        // masses moved by cuts and subdivision); every piece keeps that offset, so that the rigid
+        // centre of mass stays where it was.
+        let offset = {
+            let s = &body.surface;
+            let mut first = Vec3::zeros();
+            for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
+                first += h * *m;
             }
-        }
-        for c in n0..n1 {
-            part_cap[self.part[c] as usize] += self.cap_area[c - n0];
-        }
-        let mut velocity = [Vec3::zeros(); MAX_PARTS];
-        let mut keep_fraction = [1.0f64; MAX_PARTS];
-        for p in 0..self.parts {
-            velocity[p] = momentum[p] / self.part_mass[p];
-            let total = part_area[p] + part_cap[p];
-            if total > 0.0 {
-                keep_fraction[p] = part_area[p] / total;
-            }
-        }
-        {
-            let nu = body.params.air_viscosity;
-            let s = &mut body.surface;
-            for v in 0..n1 {
-                let p = self.part[v] as usize;
-                let m = if v < n0 {
-                    s.mass[v] * keep_fraction[p]
-                } else {
-                    self.part_mass[p] * self.cap_area[v - n0] / (part_area[p] + part_cap[p])
-                };
-                if v >= n0 {
-                    s.velocity_in_world[v] = velocity[p];
-                }
-                s.mass[v] = m;
-                s.inverse_mass[v] = 1.0 / m;
-                s.air_damping[v] = nu * m;
-            }
-        }
-        // 3. Parts into bodies: the heaviest stays.
+            first / s.mass.iter().sum::<f64>()
+        };
+        // 2. Parts into bodies: the heaviest stays.
         let kept = (0..self.parts)
             .max_by(|&a, &b| {
                 self.part_mass[a]
@@ -410,7 +419,7 @@ impl Transector {
             }
         }
         self.compact(body, kept as u32);
-        // 4. Rigid components.
+        // 3. Rigid components.
         let mut origins = [Vec3::zeros(); MAX_PARTS];
         let mut rigid_mass = [0.0f64; MAX_PARTS];
         let surface_total: f64 = self.part_mass[..self.parts].iter().sum();
@@ -422,7 +431,7 @@ impl Transector {
             let Some(piece) = part_body(body, spares, slot_of[p]) else {
                 continue;
             };
-            origins[p] = rebase_rigid(piece, &parent_rigid, rigid_mass[p]);
+            origins[p] = rebase_rigid(piece, &parent_rigid, rigid_mass[p], &offset);
             weighted_origin += origins[p] * rigid_mass[p];
         }
         weighted_origin /= parent_rigid.mass;
@@ -579,7 +588,7 @@ impl Transector {
             return false;
         }
         let part = self.part[self.loop_nodes[0] as usize];
-        let (k_link, c_link) = (body.params.link_stiffness, body.params.link_damping);
+        let first_cap_node = body.node_count();
         let (k_edge, c_edge) = (body.params.surface_stiffness, body.params.surface_damping);
         let nu = body.params.air_viscosity;
         let centre_world = {
@@ -616,10 +625,14 @@ impl Transector {
                         body,
                         centre + (rest - centre) * scale,
                         centre_world + (world - centre_world) * scale,
-                        k_link,
-                        c_link,
                         nu,
                         part,
+                        CapSource {
+                            scale,
+                            a: j as u32,
+                            b: ((j + 1) % n) as u32,
+                            u,
+                        },
                     );
                     self.ring_next.push(node);
                 }
@@ -660,7 +673,7 @@ impl Transector {
             } else {
                 // The centre, fanned to the current ring.
                 let centre_node =
-                    self.push_cap_node(body, centre, centre_world, k_link, c_link, nu, part);
+                    self.push_cap_node(body, centre, centre_world, nu, part, CapSource::default());
                 let m = self.ring.len();
                 for l in 0..m {
                     let (a, b) = (self.ring[l], self.ring[(l + 1) % m]);
@@ -670,6 +683,7 @@ impl Transector {
                 break;
             }
         }
+        self.draw_cap_from_loop(body, first_cap_node, part as usize);
         // Quality of the cap, and the rim edges are no longer boundary.
         let h = &body.surface.homologue_in_body;
         for t in &body.surface.triangles[first_triangle..] {
@@ -682,18 +696,17 @@ impl Transector {
         true
     }
 
-    /// Appends a cap node of part `part` at rest position `rest` (body frame) and `world`; its mass
-    /// and velocity are set once the caps are done.
-    #[allow(clippy::too_many_arguments)]
+    /// Appends a cap node of part `part` at rest position `rest` (body frame) and `world`, both the
+    /// combination `source` of its loop's; its mass, velocity and link are drawn from the loop once the
+    /// cap is built ([`Transector::draw_cap_from_loop`]).
     fn push_cap_node(
         &mut self,
         body: &mut Body,
         rest: Vec3,
         world: Vec3,
-        k_link: f64,
-        c_link: f64,
         nu: f64,
         part: u32,
+        source: CapSource,
     ) -> u32 {
         body.surface.push_node(
             NewNode {
@@ -704,13 +717,14 @@ impl Transector {
                 homologue_in_body: rest,
                 homologue_in_world: world,
                 plastic_offset_in_body: Vec3::zeros(),
-                link_stiffness: k_link,
-                link_damping: c_link,
+                link_stiffness: 0.0,
+                link_damping: 0.0,
             },
             nu,
         );
         self.part.push(part);
         self.cap_area.push(0.0);
+        self.cap_source.push(source);
         (body.node_count() - 1) as u32
     }
 
@@ -724,6 +738,85 @@ impl Transector {
             }
         }
         body.surface.triangles.push(t);
+    }
+
+    /// Gives the cap nodes from `first` on (the cap of the loop in `loop_nodes`, of part `part`) their
+    /// mass, velocity and link, drawn from the loop's nodes with the weights the cap nodes' places
+    /// were drawn with ([`CapSource`]). A cap node's target mass is the part's surface density times
+    /// its rest area; all targets are scaled down together when a loop node would give more than
+    /// [`MAX_RIM_SHARE`] of its mass. A loop node gives its link stiffness and damping in the
+    /// proportion it gives its mass.
+    ///
+    /// Since a cap node's place, rest place and velocity are the same convex combination of the loop's
+    /// as the mass it takes from them, the cap changes neither the mass, the centre of mass nor the
+    /// momentum of the part; its kinetic and link energies are at most those the loop gave up
+    /// (Jensen's inequality, exact when the loop's links are equally stiff per kilogram); its springs
+    /// are born at rest. A cap adds no energy.
+    fn draw_cap_from_loop(&mut self, body: &mut Body, first: usize, part: usize) {
+        let n = self.loop_nodes.len();
+        let s = &mut body.surface;
+        let from = self.cap_nodes_from;
+        let cap_count = s.mass.len() - first;
+        self.loop_demand.clear();
+        self.loop_demand.resize(n, 0.0);
+        let density = self.part_density[part];
+        let mut mean_demand = 0.0;
+        for c in first..first + cap_count {
+            let target = density * self.cap_area[c - from];
+            let src = self.cap_source[c - from];
+            // The mean's share (on every loop node), then the two nodes it was resampled between.
+            mean_demand += target * (1.0 - src.scale) / n as f64;
+            self.loop_demand[src.a as usize] += target * src.scale * (1.0 - src.u);
+            self.loop_demand[src.b as usize] += target * src.scale * src.u;
+        }
+        let mut scale: f64 = 1.0;
+        // The loop's mean velocity and link stiffness and damping per kilogram.
+        let (mut mean_velocity, mut mean_k, mut mean_c) = (Vec3::zeros(), 0.0, 0.0);
+        for (j, d) in self.loop_demand.iter_mut().enumerate() {
+            let v = self.loop_nodes[j] as usize;
+            *d += mean_demand;
+            if *d > 0.0 {
+                scale = scale.min(MAX_RIM_SHARE * s.mass[v] / *d);
+            }
+            mean_velocity += s.velocity_in_world[v];
+            mean_k += s.link_stiffness[v] / s.mass[v];
+            mean_c += s.link_damping[v] / s.mass[v];
+        }
+        mean_velocity /= n as f64;
+        mean_k /= n as f64;
+        mean_c /= n as f64;
+        let nu = body.params.air_viscosity;
+        for c in first..first + cap_count {
+            let src = self.cap_source[c - from];
+            let mass = scale * density * self.cap_area[c - from];
+            let (a, b) = (
+                self.loop_nodes[src.a as usize] as usize,
+                self.loop_nodes[src.b as usize] as usize,
+            );
+            let (t, u) = (src.scale, src.u);
+            let velocity = mean_velocity * (1.0 - t)
+                + (s.velocity_in_world[a] * (1.0 - u) + s.velocity_in_world[b] * u) * t;
+            // Node j gives the fraction mass · w_j / m_j of its mass, and as much of its link.
+            let per_kg = |q: &[f64]| (q[a] / s.mass[a] * (1.0 - u) + q[b] / s.mass[b] * u) * t;
+            let k = mass * (mean_k * (1.0 - t) + per_kg(&s.link_stiffness));
+            let damping = mass * (mean_c * (1.0 - t) + per_kg(&s.link_damping));
+            s.velocity_in_world[c] = velocity;
+            s.mass[c] = mass;
+            s.inverse_mass[c] = 1.0 / mass;
+            s.air_damping[c] = nu * mass;
+            s.link_stiffness[c] = k;
+            s.link_damping[c] = damping;
+        }
+        for (j, &v) in self.loop_nodes.iter().enumerate() {
+            let v = v as usize;
+            let given = scale * self.loop_demand[j];
+            let keep = 1.0 - given / s.mass[v];
+            s.link_stiffness[v] *= keep;
+            s.link_damping[v] *= keep;
+            s.mass[v] -= given;
+            s.inverse_mass[v] = 1.0 / s.mass[v];
+            s.air_damping[v] = nu * s.mass[v];
+        }
     }
 }
 
@@ -746,10 +839,10 @@ fn slot<'a>(spares: &'a mut [Option<&mut Body>], i: usize) -> Option<&'a mut Bod
     spares.get_mut(i)?.as_deref_mut()
 }
 
-/// Appends a spring between `a` and `b` at rest at their homologues' distance.
+/// Appends a spring between `a` and `b` at rest at their present distance (a cap is born unstressed).
 fn push_rest_edge(body: &mut Body, a: u32, b: u32, stiffness: f64, damping: f64) {
-    let h = &body.surface.homologue_in_body;
-    let rest = (h[a as usize] - h[b as usize]).norm();
+    let x = &body.surface.position_in_world;
+    let rest = (x[a as usize] - x[b as usize]).norm();
     body.edges.push(a, b, rest, stiffness, damping);
 }
 
@@ -792,34 +885,35 @@ fn copy_node(
 }
 
 /// Gives `piece` (homologues still in the parent's frame) a rigid component of `mass`: origin at the
-/// centroid of its enclosed rest solid, the solid's inertia, the parent's orientation and state;
-/// re-expresses the homologues. Returns the new origin in the parent's body frame.
-fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64) -> Vec3 {
+/// centre of mass of its surface nodes' rest places (as a body's is when it is built) less the
+/// parent's `offset` from its own, the inertia about it of the solid its closed rest surface encloses,
+/// the parent's orientation and state; re-expresses the homologues. Returns the new origin in the
+/// parent's body frame.
+///
+/// With each piece's rigid mass in proportion to its surface mass, the pieces' rigid centre of mass
+/// is then the parent's exactly (the caps take their mass from their loops at their own centre): the
+/// rigid mass does not rise or fall.
+fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64, offset: &Vec3) -> Vec3 {
     let s = &mut piece.surface;
     let (volume, first, second) = solid_moments(&s.homologue_in_body, &s.triangles);
     let surface_mass: f64 = s.mass.iter().sum();
+    let mut origin = Vec3::zeros();
+    for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
+        origin += h * *m;
+    }
+    origin = origin / surface_mass - offset;
     // The enclosed solid's inertia, when the piece encloses one: an open piece's moments need not
     // give a positive definite tensor (its "volume" is not a solid's), and then it is not used.
     let solid = (volume > 0.0 && volume.is_finite())
-        .then(|| {
-            let c = first / volume;
-            (c, inertia_about(volume, &first, &second, mass, &c))
-        })
-        .filter(|(_, inertia)| inertia.symmetric_eigenvalues().min() > 0.0);
-    let (origin, inertia) = if let Some(solid) = solid {
-        solid
-    } else {
-        // Not closed (a shred whose opening could not be capped): the surface's centre of mass, and
-        // the inertia of the rigid mass spread as the surface's is (over its homologues), with an
-        // isotropic floor of a tenth of its polar part so that a flat or thin shred stays invertible.
-        let mut c = Vec3::zeros();
-        for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
-            c += h * *m;
-        }
-        let c = c / surface_mass;
+        .then(|| inertia_about(volume, &first, &second, mass, &origin))
+        .filter(|inertia| inertia.symmetric_eigenvalues().min() > 0.0);
+    let inertia = solid.unwrap_or_else(|| {
+        // Not closed (a shred whose opening could not be capped): the inertia of the rigid mass
+        // spread as the surface's is (over its homologues), with an isotropic floor of a tenth of its
+        // polar part so that a flat or thin shred stays invertible.
         let mut inertia = Matrix3::zeros();
         for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
-            let r = h - c;
+            let r = h - origin;
             inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * *m;
         }
         inertia *= mass / surface_mass;
@@ -829,8 +923,8 @@ fn rebase_rigid(piece: &mut Body, parent: &RigidComponent, mass: f64) -> Vec3 {
         } else {
             mass * 1e-6
         };
-        (c, inertia + Matrix3::identity() * floor)
-    };
+        inertia + Matrix3::identity() * floor
+    });
     for h in &mut s.homologue_in_body {
         *h -= origin;
     }
@@ -870,7 +964,7 @@ mod tests {
             .retain(|t| t.iter().all(|&v| x[v as usize].z > 0.005));
         assert!(!body.surface.triangles.is_empty());
         let parent = body.rigid.clone();
-        rebase_rigid(&mut body, &parent, 0.01);
+        rebase_rigid(&mut body, &parent, 0.01, &Vec3::zeros());
         let inertia = body.rigid.inertia_in_body;
         let eigen = inertia.symmetric_eigenvalues();
         let largest = eigen.max();
