@@ -666,9 +666,10 @@ impl World {
             *r = t.as_mut().map(|s| &mut s.body);
         }
         let min_angle = cutter.quality_bound_deg;
-        let result = cutter
-            .transector
-            .separate(body, &mut refs[..found], min_angle);
+        let result =
+            cutter
+                .transector
+                .separate(body, &mut refs[..found], min_angle, &self.params.gravity);
         cutter.transection_counts(&result);
         cutter.renumbered();
         self.solvers[b].topology_changed(body, dt);

@@ -511,7 +511,7 @@ fn a_tube_cut_across_separates_into_two_closed_bodies_with_momentum_shared() {
     let rigid_centre0 = body.rigid.position_in_world * body.rigid.mass;
     let result = cutter
         .transector
-        .separate(&mut body, &mut [Some(&mut spare)], 15.0);
+        .separate(&mut body, &mut [Some(&mut spare)], 15.0, &gravity);
     assert_eq!(result.parts, 2);
     assert_eq!(result.caps, 2, "{result:?}");
     println!("transection: {result:?}");

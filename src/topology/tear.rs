@@ -9,8 +9,11 @@
 //! tick bounded. A spring between two inner nodes with no opening next to it cannot open alone (a
 //! slit of one edge separates nothing): it breaks together with the most stretched inner spring that
 //! continues it from either end, the crack's first two edges. A spring whose two ends a grasper holds
-//! does not tear: the jaws keep the tissue between them (their squeeze is no pull), and it tears
-//! around the grasp.
+//! does not tear: the jaws keep the tissue between them (their squeeze is no pull). A spring from a
+//! held node to a free one (inner or a lip) tears round the grasp: the crack opens the free node's
+//! edges to the other corners of the spring's triangles, along the edge of the held node's fan, so
+//! that the held tissue comes away whole (opening the spring itself would split the held node into
+//! spikes, each hanging from the organ by a triangle whose sides never tear).
 //!
 //! Mass and momentum are conserved by construction (copies split a node's mass and move with it);
 //! the elastic energy of a torn spring stays in its two lips (each of half its stiffness), so a tear
@@ -42,7 +45,7 @@ impl Default for TearingSettings {
             ticks: 1,
             max_per_tick: 4,
             max_nodes: 2048,
-            max_pieces: 4,
+            max_pieces: 8,
         }
     }
 }
@@ -58,6 +61,8 @@ pub struct TearCounters {
     pub ticks: u64,
     /// Springs past the threshold left for a later tick (the per-tick bound).
     pub deferred: u64,
+    /// Springs from held to free tissue whose break opened the edges round the grasp instead.
+    pub rounds: u64,
 }
 
 /// The tearing state of one body: settings, counters and fixed scratch.
@@ -89,7 +94,7 @@ impl Tearer {
             counters: TearCounters::default(),
             over: Vec::with_capacity(edges),
             picked: Vec::with_capacity(settings.max_per_tick),
-            path: Vec::with_capacity(2),
+            path: Vec::with_capacity(3),
             transections_seen: 0,
         }
     }
@@ -140,17 +145,46 @@ impl Tearer {
                 continue;
             }
             let (a, b) = (body.edges.a[k], body.edges.b[k]);
-            if triangles_on(body, a, b) != 2 {
+            self.path.clear();
+            let held = &body.surface.tool_contact;
+            let (held_a, held_b) = (
+                held[a as usize].grasp.is_some(),
+                held[b as usize].grasp.is_some(),
+            );
+            if held_a == held_b && triangles_on(body, a, b) != 2 {
                 // A lip (of a cut, a tear, a mesh's border), or not a mesh edge: it never tears.
                 self.over[k] = LIP;
                 continue;
             }
-            self.path.clear();
-            self.path.push((a, b));
-            if !on_boundary(body, a) && !on_boundary(body, b) && !cutter.pending_at(a, b) {
-                if let Some(next) = continuation(body, a, b) {
-                    self.path.push(next);
-                    self.counters.starts += 1;
+            if held_a != held_b {
+                // A spring from held tissue to free tissue (inner or a lip) tears round the grasp:
+                // the crack opens the free node's edges to the other corners of the spring's
+                // triangles (the held node's fan, on the free side), so that the held patch comes
+                // away whole instead of the held node being split into spikes.
+                let (g, x) = if held_a { (a, b) } else { (b, a) };
+                round_the_grasp(body, g, x, &mut self.path);
+                if self.path.is_empty() {
+                    // Already open round there: the spring now pulls on the patch only.
+                    self.over[k] = 0;
+                    continue;
+                }
+                if self.path.len() == 1 {
+                    let (p, q) = self.path[0];
+                    if !on_boundary(body, p) && !on_boundary(body, q) && !cutter.pending_at(p, q) {
+                        if let Some(next) = continuation(body, p, q) {
+                            self.path.push(next);
+                            self.counters.starts += 1;
+                        }
+                    }
+                }
+                self.counters.rounds += 1;
+            } else {
+                self.path.push((a, b));
+                if !on_boundary(body, a) && !on_boundary(body, b) && !cutter.pending_at(a, b) {
+                    if let Some(next) = continuation(body, a, b) {
+                        self.path.push(next);
+                        self.counters.starts += 1;
+                    }
                 }
             }
             let step = cutter.tear(body, &self.path);
@@ -221,17 +255,44 @@ fn on_boundary(body: &Body, v: u32) -> bool {
     false
 }
 
-/// The most strained inner spring at `a` or `b` other than `a`–`b` (two triangles on it), as the
-/// crack's second edge.
+/// The edges a tear round the grasp opens for the spring from held node `g` to free node `x`: for each
+/// triangle on `g`–`x`, the edge from `x` to its third corner, when that corner is free and the edge
+/// inner (two triangles on it). Appended to `path`.
+fn round_the_grasp(body: &Body, g: u32, x: u32, path: &mut Vec<(u32, u32)>) {
+    let held = &body.surface.tool_contact;
+    for t in &body.surface.triangles {
+        if !(t.contains(&g) && t.contains(&x)) {
+            continue;
+        }
+        let Some(&y) = t.iter().find(|&&v| v != g && v != x) else {
+            continue;
+        };
+        if held[y as usize].grasp.is_none()
+            && triangles_on(body, x, y) == 2
+            && path.len() < path.capacity()
+        {
+            path.push((x, y));
+        }
+    }
+}
+
+/// The most strained inner spring at `a` or `b` other than `a`–`b` (two triangles on it, neither end
+/// held by a grasper), as the crack's second edge.
 fn continuation(body: &Body, a: u32, b: u32) -> Option<(u32, u32)> {
     let x = &body.surface.position_in_world;
+    let held = &body.surface.tool_contact;
     let e = &body.edges;
     let mut best: Option<(f64, u32, u32)> = None;
     for k in 0..e.len() {
         let (p, q) = (e.a[k], e.b[k]);
         let touches = p == a || p == b || q == a || q == b;
         let same = (p == a && q == b) || (p == b && q == a);
-        if !touches || same || e.rest_length[k] <= 0.0 {
+        if !touches
+            || same
+            || e.rest_length[k] <= 0.0
+            || held[p as usize].grasp.is_some()
+            || held[q as usize].grasp.is_some()
+        {
             continue;
         }
         let strain = (x[q as usize] - x[p as usize]).norm() / e.rest_length[k] - 1.0;

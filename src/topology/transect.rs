@@ -267,6 +267,7 @@ impl Transector {
         body: &mut Body,
         spares: &mut [Option<&mut Body>],
         min_angle: f64,
+        gravity: &Vec3,
     ) -> Transection {
         let mut result = Transection {
             parts: self.parts,
@@ -463,6 +464,17 @@ impl Transector {
                 if !piece.rigid.fixed {
                     piece.rigid.angular_momentum_in_world +=
                         left * (rigid_mass[p] / parent_rigid.mass);
+                }
+            }
+        }
+        // A piece freed from a fixed body: its rigid component was held with the body, so its place
+        // is free to choose; it starts where its links and its weight balance.
+        if parent_rigid.fixed {
+            for p in 0..self.parts {
+                if let Some(piece) = part_body(body, spares, slot_of[p])
+                    && !piece.rigid.fixed
+                {
+                    settle_freed_rigid(piece, gravity);
                 }
             }
         }
@@ -881,6 +893,35 @@ fn copy_node(
     );
     if let Some(contact) = to.tool_contact.last_mut() {
         *contact = from.tool_contact[v];
+    }
+}
+
+/// Moves the rigid component of a piece just freed from a fixed body (at rest, held until now) to where
+/// the pull of its links on it balances its weight, the minimum over its position of link energy plus
+/// its potential energy: `X = (Σ kᵢ (xᵢ − R hᵢ) + m g) / Σ kᵢ`. The links' stored energy (a piece torn
+/// out of a held organ may be far from its rest place) is released with the tear, not flung at the
+/// tool; the energy cannot grow, since the old place was a candidate.
+fn settle_freed_rigid(piece: &mut Body, gravity: &Vec3) {
+    let s = &mut piece.surface;
+    let r = &mut piece.rigid;
+    let rotation = r.world_from_body.to_rotation_matrix();
+    let mut pull = *gravity * r.mass;
+    let mut stiffness = 0.0;
+    for i in 0..s.mass.len() {
+        let k = s.link_stiffness[i];
+        pull += (s.position_in_world[i] - rotation * s.homologue_in_body[i]) * k;
+        stiffness += k;
+    }
+    if !(stiffness > 0.0) {
+        return;
+    }
+    let place = pull / stiffness;
+    if !place.iter().all(|c| c.is_finite()) {
+        return;
+    }
+    r.position_in_world = place;
+    for i in 0..s.mass.len() {
+        s.homologue_in_world[i] = place + rotation * s.homologue_in_body[i];
     }
 }
 
