@@ -912,7 +912,7 @@ fn settle_freed_rigid(piece: &mut Body, gravity: &Vec3) {
         pull += (s.position_in_world[i] - rotation * s.homologue_in_body[i]) * k;
         stiffness += k;
     }
-    if !(stiffness > 0.0) {
+    if stiffness <= 0.0 || !stiffness.is_finite() {
         return;
     }
     let place = pull / stiffness;
