@@ -4,9 +4,10 @@
 //! satisfies it.
 //!
 //! Fixed, deterministic exchange schedule: the slow nodes are integrated first over the whole step
-//! with the forces of its start; then the fast nodes are integrated together in substeps, each
-//! substep recomputing their forces from their own current states and from the slow neighbours'
-//! positions interpolated linearly between the start and the end of the step. The slow nodes feel the
+//! with the forces of its start; then the fast nodes are integrated in substeps of the finest level,
+//! each fast node stepping at its own level (every `2^(L − level)` substeps, with that many substeps'
+//! step), its force recomputed from its own current state, its fast neighbours' latest states and
+//! the slow neighbours' positions interpolated linearly between the start and the end of the step. The slow nodes feel the
 //! fast ones through the forces at the start of the step. With no fast node this is exactly the
 //! symplectic scheme.
 //!
@@ -352,11 +353,15 @@ impl Multirate {
         }
         let h = dt / self.substeps as f64;
         let e = &body.edges;
+        // Each fast node steps at its own level: node i every `stride = 2^(L − level[i])` substeps,
+        // with a step of `stride · h` (one stiff node does not drag every fast node down to its
+        // step). Its fast neighbours enter with their latest states.
         for step in 0..self.substeps {
             let fraction = step as f64 / self.substeps as f64;
             for (k, &i) in self.fast.iter().enumerate() {
                 let i = i as usize;
-                if s.tool_contact[i].tool != NO_TOOL {
+                let stride = self.substeps >> self.level[i];
+                if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
                     continue;
                 }
                 let (x, v) = (self.x[k], self.v[k]);
@@ -366,7 +371,7 @@ impl Multirate {
                 let link = (homologue - x) * s.link_stiffness[i]
                     + (homologue_velocity - v) * s.link_damping[i];
                 // The rigid component's reaction over this substep (a force over the step).
-                let share = 1.0 / self.substeps as f64;
+                let share = stride as f64 / self.substeps as f64;
                 let centre_now = centre + (rigid_end.position_in_world - centre) * fraction;
                 self.carried_force -= link * share;
                 self.carried_torque -= (homologue - centre_now).cross(&link) * share;
@@ -389,11 +394,13 @@ impl Multirate {
             }
             for (k, &i) in self.fast.iter().enumerate() {
                 let i = i as usize;
-                if s.tool_contact[i].tool != NO_TOOL {
+                let stride = self.substeps >> self.level[i];
+                if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
                     continue;
                 }
-                self.v[k] += self.f[k] * (h * s.inverse_mass[i]);
-                self.x[k] += self.v[k] * h;
+                let own = h * stride as f64;
+                self.v[k] += self.f[k] * (own * s.inverse_mass[i]);
+                self.x[k] += self.v[k] * own;
             }
         }
         for (k, &i) in self.fast.iter().enumerate() {

@@ -856,9 +856,21 @@ fn grasp(args: GraspArgs) -> Result<()> {
         .replace("surface_mass = 0.03", "surface_mass = 0.25");
     let lift_open = lift.replace("jaw = 0.0 }", "jaw = 1.2 }");
     let tear = include_str!("../../scenes/tear.toml").to_string();
-    let tear_off = tear.replace(
-        "tearing = { strain = 0.4 }",
-        "tearing = { enabled = false }",
+    // The same scene with the body's `tearing` line switched off (whatever its keys).
+    let tear_off: String = tear
+        .lines()
+        .map(|line| {
+            if line.starts_with("tearing = ") {
+                "tearing = { enabled = false }"
+            } else {
+                line
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    anyhow::ensure!(
+        tear_off.contains("tearing = { enabled = false }"),
+        "scenes/tear.toml has no `tearing = ` line to switch off"
     );
     let cases = [
         ("grasp_lift", &lift, 2000..8800),
