@@ -41,6 +41,10 @@ const MIN_RING: usize = 3;
 
 const NONE: u32 = u32::MAX;
 
+/// A cap triangle whose rest area is below this times its longest edge squared is degenerate (the
+/// bound `check_surface` holds every triangle to, with a margin).
+const DEGENERATE: f64 = 1e-8;
+
 /// What a transection did (see [`Transector::separate`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Transection {
@@ -601,6 +605,7 @@ impl Transector {
         }
         let part = self.part[self.loop_nodes[0] as usize];
         let first_cap_node = body.node_count();
+        let first_edge = body.edges.len();
         let (k_edge, c_edge) = (body.params.surface_stiffness, body.params.surface_damping);
         let nu = body.params.air_viscosity;
         let centre_world = {
@@ -694,6 +699,31 @@ impl Transector {
                 }
                 break;
             }
+        }
+        // A loop that folds back on itself (a slit whose two lips meet at copies of one node, the
+        // same rest place) can put the cap's centre on the line of a rim edge: a cap with a
+        // degenerate triangle is taken back, and the loop left open.
+        let degenerate = body.surface.triangles[first_triangle..].iter().any(|t| {
+            let [a, b, c] = t.map(|v| body.surface.homologue_in_body[v as usize]);
+            let longest = (b - a)
+                .norm_squared()
+                .max((c - b).norm_squared())
+                .max((a - c).norm_squared());
+            0.5 * (b - a).cross(&(c - a)).norm() < DEGENERATE * longest
+        });
+        if degenerate {
+            body.surface.triangles.truncate(first_triangle);
+            while body.edges.len() > first_edge {
+                body.edges.pop();
+            }
+            while body.node_count() > first_cap_node {
+                body.surface.pop_node();
+            }
+            let kept = first_cap_node - self.cap_nodes_from;
+            self.part.truncate(first_cap_node);
+            self.cap_area.truncate(kept);
+            self.cap_source.truncate(kept);
+            return false;
         }
         self.draw_cap_from_loop(body, first_cap_node, part as usize);
         // Quality of the cap, and the rim edges are no longer boundary.
