@@ -423,7 +423,10 @@ fn random_pulls_keep_every_invariant() {
     let mut rng = common::Rng(14);
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cases_torn, mut total_tears, mut total_pieces) = (0, 0u64, 0usize);
-    let cases = 24;
+    let cases: usize = std::env::var("PALPA_PULLS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(24);
     for case in 0..cases {
         let subdivisions = 2 + case % 2;
         let fixed = case % 4 != 3;

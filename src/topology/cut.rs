@@ -1605,7 +1605,8 @@ fn edge_in_template(
 /// Checks the surface of `body`: every triangle's corners distinct and in range, every directed edge
 /// used once (an oriented 2-manifold with boundary), every undirected edge by at most two triangles
 /// in opposite directions, no orphan node, every node's fan a single disc or half-disc, no triangle of
-/// area below 1e-10 × its longest edge² (rest). Returns the first problem found.
+/// area below 1e-10 × its longest edge² (rest), every triangle side a spring, the boundary count
+/// right. Returns the first problem found.
 pub fn check_surface(body: &Body) -> Result<(), String> {
     let s = &body.surface;
     let n = s.position_in_world.len();
@@ -1687,6 +1688,19 @@ pub fn check_surface(body: &Body) -> Result<(), String> {
     for k in 0..e.len() {
         if e.a[k] as usize >= n || e.b[k] as usize >= n || e.a[k] == e.b[k] {
             return Err(format!("spring {k} has bad ends ({}, {})", e.a[k], e.b[k]));
+        }
+    }
+    // Every side of every triangle has a spring (cuts and tears open the surface along springs).
+    let mut springs: Vec<(u32, u32)> = (0..e.len())
+        .map(|k| (e.a[k].min(e.b[k]), e.a[k].max(e.b[k])))
+        .collect();
+    springs.sort_unstable();
+    for t in &s.triangles {
+        for k in 0..3 {
+            let (p, q) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+            if springs.binary_search(&(p, q)).is_err() {
+                return Err(format!("side {p}–{q} of triangle {t:?} has no spring"));
+            }
         }
     }
     if count_boundary_edges(&s.triangles) != body.boundary_edges {

@@ -683,8 +683,8 @@ impl Transector {
                         l += 1;
                     }
                 }
-                // The last rung created is the first one again: drop the duplicate spring.
-                body.edges.pop();
+                // Each strip triangle added one rung; the last is the first triangle's starting
+                // rung (ring[0]–ring_next[0]), created only then: m + count rungs, all distinct.
                 std::mem::swap(&mut self.ring, &mut self.ring_next);
                 ring_is_loop = false;
             } else {
