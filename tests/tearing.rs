@@ -420,7 +420,11 @@ fn the_tear_scene_grasps_pulls_and_tears_and_replays_bit_for_bit() {
 /// feedback stays finite.
 #[test]
 fn random_pulls_keep_every_invariant() {
-    let mut rng = common::Rng(14);
+    let seed = std::env::var("PALPA_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(14);
+    let mut rng = common::Rng(seed);
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cases_torn, mut total_tears, mut total_pieces) = (0, 0u64, 0usize);
     let cases: usize = std::env::var("PALPA_PULLS")
