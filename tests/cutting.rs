@@ -653,3 +653,140 @@ fn the_transection_scene_makes_two_bodies_that_fall_and_rest() {
         assert!(drift < 2e-3, "{} still moves: {drift} m in 0.5 s", b.name);
     }
 }
+
+/// Random blade sessions in the world (meshes, blade axes and sweeps, several passes, held or free
+/// organs on a table, subdivision on or off, each integrator): after every tick that cuts, every body
+/// (pieces included) is an oriented manifold with no orphan node, a spring on every triangle side
+/// and the right boundary count, everything finite, and the world's mass conserved to 1e-12.
+#[test]
+fn random_blade_sessions_keep_every_invariant() {
+    let sessions: usize = std::env::var("PALPA_SESSIONS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(12);
+    let mut rng = common::Rng(
+        std::env::var("PALPA_SEED")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(13),
+    );
+    let integrators = ["multirate", "implicit", "symplectic"];
+    let (mut cut_sessions, mut pieces) = (0, 0);
+    for session in 0..sessions {
+        let subdivisions = 2 + session % 2;
+        let fixed = session % 3 == 0;
+        let integrator = integrators[session % 3];
+        let subdivision = if session % 2 == 0 {
+            "subdivision = { max_depth = 1 }"
+        } else {
+            ""
+        };
+        let unit = |rng: &mut common::Rng| loop {
+            let v = Vec3::new(
+                2.0 * rng.unit() - 1.0,
+                2.0 * rng.unit() - 1.0,
+                2.0 * rng.unit() - 1.0,
+            );
+            if v.norm() > 0.2 && v.norm() <= 1.0 {
+                break v.normalize();
+            }
+        };
+        // The blade's edge along `axis` (the tool's z), swept along `sweep` ⟂ axis through the
+        // organ at an offset, back and forth `passes` times.
+        let axis = unit(&mut rng);
+        let sweep = unit(&mut rng).cross(&axis).normalize();
+        let offset = (unit(&mut rng) - axis * unit(&mut rng).dot(&axis)) * 0.02 * rng.unit();
+        let centre = Vec3::new(0.0, 0.0, 0.031) + offset;
+        let z = Vec3::z();
+        let turn = z.cross(&axis);
+        let q = if turn.norm() < 1e-9 {
+            if axis.z > 0.0 {
+                [1.0, 0.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0, 0.0]
+            }
+        } else {
+            let half = 0.5 * z.dot(&axis).clamp(-1.0, 1.0).acos();
+            let k = turn.normalize() * half.sin();
+            [half.cos(), k.x, k.y, k.z]
+        };
+        let passes = 1 + rng.below(3);
+        let mut script = String::new();
+        let mut t = 0.0;
+        for pass in 0..=passes {
+            let side = if pass % 2 == 0 { -1.0 } else { 1.0 };
+            let p = centre + sweep * (0.05 * side) - axis * 0.025;
+            script.push_str(&format!(
+                "  {{ t = {t}, position = [{}, {}, {}], orientation = [{}, {}, {}, {}] }},\n",
+                p.x, p.y, p.z, q[0], q[1], q[2], q[3]
+            ));
+            t += 0.3 + 0.5 * rng.unit();
+        }
+        let scene = format!(
+            r#"
+[world]
+gravity = [0.0, 0.0, -9.81]
+dt = 0.001
+
+[[body]]
+name = "organ"
+mesh = {{ icosphere = {{ radius = 0.03, subdivisions = {subdivisions} }} }}
+position = [0.0, 0.0, 0.031]
+surface_mass = 0.2
+rigid_mass = 1.0
+surface_stiffness = 40.0
+surface_damping = 0.05
+link_stiffness = 200.0
+link_damping = 0.2
+fixed = {fixed}
+integrator = "{integrator}"
+cutting = {{}}
+{subdivision}
+
+[[obstacle]]
+name = "table"
+plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+
+[[tool]]
+name = "scalpel"
+shape = {{ blade = {{ length = 0.05, thickness = 0.0005 }} }}
+input = "script"
+script = [
+{script}]
+"#
+        );
+        let mut world = World::from_scene(&common::scene(&scene));
+        let mass0: f64 = world.bodies.iter().map(|b| b.total_mass()).sum();
+        let mut cuts = 0;
+        for tick in 0..(t * 1000.0) as usize {
+            world.step();
+            if world.counters.cuts == 0 && world.counters.transections == 0 {
+                continue;
+            }
+            cuts += 1;
+            let context = format!(
+                "session {session} ({integrator}, {subdivisions} subdivisions, fixed {fixed}, \
+                 subdivision {}, {passes} passes), tick {tick}",
+                !subdivision.is_empty()
+            );
+            let mass: f64 = world.bodies.iter().map(|b| b.total_mass()).sum();
+            assert!(
+                (mass - mass0).abs() <= 1e-12 * mass0,
+                "{context}: mass {mass0} → {mass}"
+            );
+            for b in &world.bodies {
+                check_surface(b).unwrap_or_else(|e| panic!("{context}, {}: {e}", b.name));
+                assert!(b.is_finite(), "{context}: {} is not finite", b.name);
+            }
+        }
+        if cuts > 0 {
+            cut_sessions += 1;
+        }
+        pieces += world.bodies.len() - 1;
+    }
+    println!("{sessions} random blade sessions: {cut_sessions} cut, {pieces} pieces");
+    assert!(
+        cut_sessions >= sessions / 2,
+        "only {cut_sessions} of {sessions} sessions cut"
+    );
+}
