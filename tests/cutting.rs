@@ -453,12 +453,6 @@ fn a_tube_cut_across_separates_into_two_closed_bodies_with_momentum_shared() {
     let (mass0, momentum0, energy0) = totals(&[&body]);
     let rigid0 = body.rigid.mass;
     let gravity = Vec3::new(0.0, 0.0, -9.81);
-    let total_energy = |bodies: &[&Body]| -> f64 {
-        bodies
-            .iter()
-            .map(|b| palpa::dynamics::guard::body_energy(b, &gravity))
-            .sum()
-    };
     // One stroke: the blade's edge spans the tube top to bottom, swept across it at x = 3 mm.
     let x = body.rigid.position_in_world.x + 0.003;
     let (y0, z0) = (
@@ -496,7 +490,7 @@ fn a_tube_cut_across_separates_into_two_closed_bodies_with_momentum_shared() {
         .collect();
     // Everything the transection may change: elastic, link, gravity and kinetic energy, and where the
     // rigid mass is.
-    let all_energy0 = total_energy(&[&body]);
+    let all_energy0 = common::total_energy([&body], &gravity);
     let surface_centre = |b: &Body| -> Vec3 {
         b.surface
             .homologue_in_body
@@ -527,7 +521,7 @@ fn a_tube_cut_across_separates_into_two_closed_bodies_with_momentum_shared() {
         "kinetic energy {energy0} → {energy1}"
     );
     assert!((body.rigid.mass + spare.rigid.mass - rigid0).abs() <= 1e-12 * rigid0);
-    let all_energy1 = total_energy(&[&body, &spare]);
+    let all_energy1 = common::total_energy([&body, &spare], &gravity);
     println!("energy {all_energy0} J → {all_energy1} J");
     assert!(
         all_energy1 <= all_energy0 + 1e-12 * all_energy0.abs(),
@@ -660,16 +654,8 @@ fn the_transection_scene_makes_two_bodies_that_fall_and_rest() {
 /// and the right boundary count, everything finite, and the world's mass conserved to 1e-12.
 #[test]
 fn random_blade_sessions_keep_every_invariant() {
-    let sessions: usize = std::env::var("PALPA_SESSIONS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(12);
-    let mut rng = common::Rng(
-        std::env::var("PALPA_SEED")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(13),
-    );
+    let sessions: usize = common::env_or("PALPA_SESSIONS", 12);
+    let mut rng = common::Rng(common::env_or("PALPA_SEED", 13));
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cut_sessions, mut pieces) = (0, 0);
     for session in 0..sessions {
@@ -681,21 +667,11 @@ fn random_blade_sessions_keep_every_invariant() {
         } else {
             ""
         };
-        let unit = |rng: &mut common::Rng| loop {
-            let v = Vec3::new(
-                2.0 * rng.unit() - 1.0,
-                2.0 * rng.unit() - 1.0,
-                2.0 * rng.unit() - 1.0,
-            );
-            if v.norm() > 0.2 && v.norm() <= 1.0 {
-                break v.normalize();
-            }
-        };
         // The blade's edge along `axis` (the tool's z), swept along `sweep` ⟂ axis through the
         // organ at an offset, back and forth `passes` times.
-        let axis = unit(&mut rng);
-        let sweep = unit(&mut rng).cross(&axis).normalize();
-        let offset = (unit(&mut rng) - axis * unit(&mut rng).dot(&axis)) * 0.02 * rng.unit();
+        let axis = rng.unit_vector();
+        let sweep = rng.unit_vector().cross(&axis).normalize();
+        let offset = (rng.unit_vector() - axis * rng.unit_vector().dot(&axis)) * 0.02 * rng.unit();
         let centre = Vec3::new(0.0, 0.0, 0.031) + offset;
         let z = Vec3::z();
         let turn = z.cross(&axis);

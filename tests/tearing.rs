@@ -206,13 +206,7 @@ fn pull(tearing: &str) -> Pull {
     let mut worst_gain = f64::NEG_INFINITY;
     let mut worst_transection_gain = f64::NEG_INFINITY;
     let gravity = world.params.gravity;
-    let energy = |world: &World| -> f64 {
-        world
-            .bodies
-            .iter()
-            .map(|b| palpa::dynamics::guard::body_energy(b, &gravity))
-            .sum()
-    };
+    let energy = |world: &World| common::total_energy(&world.bodies, &gravity);
     for tick in 0..3200 {
         let (mass_before, _) = totals(&world);
         let before = energy(&world);
@@ -420,17 +414,10 @@ fn the_tear_scene_grasps_pulls_and_tears_and_replays_bit_for_bit() {
 /// feedback stays finite.
 #[test]
 fn random_pulls_keep_every_invariant() {
-    let seed = std::env::var("PALPA_SEED")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(14);
-    let mut rng = common::Rng(seed);
+    let mut rng = common::Rng(common::env_or("PALPA_SEED", 14));
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cases_torn, mut total_tears, mut total_pieces) = (0, 0u64, 0usize);
-    let cases: usize = std::env::var("PALPA_PULLS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(24);
+    let cases: usize = common::env_or("PALPA_PULLS", 24);
     for case in 0..cases {
         let subdivisions = 2 + case % 2;
         let fixed = case % 4 != 3;
@@ -438,18 +425,8 @@ fn random_pulls_keep_every_invariant() {
         let strain = 0.2 + 0.4 * rng.unit();
         let ticks = 1 + rng.below(20);
         let max_per_tick = 1 + rng.below(8);
-        let unit = |rng: &mut common::Rng| loop {
-            let v = Vec3::new(
-                2.0 * rng.unit() - 1.0,
-                2.0 * rng.unit() - 1.0,
-                2.0 * rng.unit() - 1.0,
-            );
-            if v.norm() > 0.2 && v.norm() <= 1.0 {
-                break v.normalize();
-            }
-        };
-        let d = unit(&mut rng);
-        let pull = (d + unit(&mut rng) * 0.6).normalize() * (0.02 + 0.03 * rng.unit());
+        let d = rng.unit_vector();
+        let pull = (d + rng.unit_vector() * 0.6).normalize() * (0.02 + 0.03 * rng.unit());
         let start = d * 0.031;
         let end = start + pull;
         let scene = format!(
@@ -490,13 +467,7 @@ script = [
             .collect();
         hold(&mut world, &held);
         let gravity = world.params.gravity;
-        let energy = |world: &World| -> f64 {
-            world
-                .bodies
-                .iter()
-                .map(|b| palpa::dynamics::guard::body_energy(b, &gravity))
-                .sum()
-        };
+        let energy = |world: &World| common::total_energy(&world.bodies, &gravity);
         let mut tears = 0;
         for tick in 0..1500 {
             let (mass_before, _) = totals(&world);

@@ -113,6 +113,20 @@ impl Rng {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    /// A direction uniform on the sphere (rejection from the cube, away from the centre).
+    pub fn unit_vector(&mut self) -> palpa::Vec3 {
+        loop {
+            let v = palpa::Vec3::new(
+                2.0 * self.unit() - 1.0,
+                2.0 * self.unit() - 1.0,
+                2.0 * self.unit() - 1.0,
+            );
+            if v.norm() > 0.2 && v.norm() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+
     /// Any 64 bits as a double (NaN, infinities and denormals included).
     pub fn bits(&mut self) -> f64 {
         f64::from_bits(self.next())
@@ -232,4 +246,24 @@ pub fn assert_body_key_refused(key: &str, expected: &str) {
         error.contains("bad.toml:3") && error.contains(expected),
         "{key}: {error}"
     );
+}
+
+/// The number in environment variable `name`, or `default` when it is unset or not a number (lets a
+/// property test run more cases or another seed by hand).
+pub fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The whole energy of `bodies` (kinetic, links, springs, gravity on nodes and rigid components; J).
+pub fn total_energy<'a>(
+    bodies: impl IntoIterator<Item = &'a palpa::body::Body>,
+    gravity: &palpa::Vec3,
+) -> f64 {
+    bodies
+        .into_iter()
+        .map(|b| palpa::dynamics::guard::body_energy(b, gravity))
+        .sum()
 }
