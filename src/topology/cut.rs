@@ -499,6 +499,7 @@ impl Cutter {
         if self.crossings.is_empty() {
             return step;
         }
+        self.snap_along_edges(tool);
         // Number the planned split nodes; the triangles around the crossings and tips.
         self.number_splits(body);
         self.select_candidates(body, tool, stamp, 0);
@@ -639,6 +640,32 @@ impl Cutter {
         }
         self.open_path(body, &mut step);
         step
+    }
+
+    /// A crossing on an edge from a node the path already goes through (a node another crossing of
+    /// this step snapped to, or the crack tip) would make the path run along that edge: in the
+    /// triangle they share, the cut would join a corner to a point of one of its own sides, and the
+    /// split would only leave needles on both sides of the edge. Such a crossing snaps to that
+    /// node: the blade goes on from it.
+    fn snap_along_edges(&mut self, tool: usize) {
+        for i in 0..self.crossings.len() {
+            let c = self.crossings[i];
+            if !matches!(c.choice, Choice::Split) {
+                continue;
+            }
+            let on = |v: u32, cutter: &Self| {
+                cutter
+                    .crossings
+                    .iter()
+                    .any(|d| matches!(d.choice, Choice::Snap(w) if w == v))
+                    || cutter.tips.get(tool).is_some_and(|t| t.contains(v))
+            };
+            let near = if c.t <= 0.5 { [c.a, c.b] } else { [c.b, c.a] };
+            if let Some(&v) = near.iter().find(|&&v| on(v, self)) {
+                self.crossings[i].choice = Choice::Snap(v);
+                self.crossings[i].node = v;
+            }
+        }
     }
 
     fn is_split(&self, c: Option<u16>) -> bool {
