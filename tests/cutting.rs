@@ -592,7 +592,7 @@ fn a_tube_cut_across_separates_into_two_closed_bodies_with_momentum_shared() {
     );
 }
 
-/// The transection scene: the tube becomes `tube` and `tube.1`, both closed, and both halves tip off
+/// The transection scene: the blade's first pass makes the tube `tube` and `tube.1`, both closed, and both halves tip off
 /// the block and come to rest on the table; two runs give the same trace, and the recording replays
 /// bit for bit with the new body announced.
 #[test]
@@ -630,6 +630,11 @@ fn the_transection_scene_makes_two_bodies_that_fall_and_rest() {
         }
     }
     let split_at = split_at.expect("the tube was not cut through");
+    // The blade's first pass across the tube ends at t = 0.8 s.
+    assert!(
+        split_at <= 800,
+        "the tube came apart only on the blade's way back (tick {split_at})"
+    );
     let mass1: f64 = world.bodies.iter().map(|b| b.total_mass()).sum();
     assert!((mass1 - mass0).abs() <= 1e-12 * mass0);
     for (b, before) in world.bodies.iter().zip(&last_com) {
@@ -642,8 +647,9 @@ fn the_transection_scene_makes_two_bodies_that_fall_and_rest() {
         let drift = (b.surface_centre_of_mass() - before).norm();
         let com = b.surface_centre_of_mass();
         println!(
-            "{}: split at tick {split_at}, com {:?}, lowest node {lowest:.5} m, drift over the last 0.5 s {drift:.2e} m, kinetic energy {:.2e} J",
+            "{}: split at tick {split_at}, {:.4} kg, com {:?}, lowest node {lowest:.5} m, drift over the last 0.5 s {drift:.2e} m, kinetic energy {:.2e} J",
             b.name,
+            b.total_mass(),
             com.as_slice(),
             b.kinetic_energy()
         );

@@ -128,6 +128,9 @@ enum Choice {
     Split,
 }
 
+/// How far back over the tick's motion a blade's swept quad reaches (see [`Cutter::cut`]).
+const BACK_REACH: f64 = 0.25;
+
 /// One crossed edge (or one split for quality).
 #[derive(Clone, Copy, Debug)]
 struct Crossing {
@@ -423,6 +426,12 @@ impl Cutter {
         end: [Vec3; 2],
     ) -> CutStep {
         let mut step = CutStep::default();
+        // The quad reaches back over a quarter of the tick's motion, into the last one's: the body
+        // moves too, and an edge whose crossing sat on the line between two ticks' quads could
+        // slip back out of both (the crossings of the last tick are split or snapped, so only
+        // snaps onto the path can come again).
+        let back = |s: Vec3, e: Vec3| s - (e - s) * BACK_REACH;
+        let start = [back(start[0], end[0]), back(start[1], end[1])];
         let quad = [start[0], start[1], end[1], end[0]];
         let area = 0.5
             * ((quad[1] - quad[0]).cross(&(quad[2] - quad[0])).norm()
@@ -496,7 +505,7 @@ impl Cutter {
             });
         }
         step.crossings = self.crossings.len() as u32;
-        if self.crossings.is_empty() {
+        if self.crossings.is_empty() && !self.fronts_meet(body, tool, &quad) {
             return step;
         }
         self.snap_along_edges(tool);
@@ -668,6 +677,31 @@ impl Cutter {
         }
     }
 
+    /// Whether two tips of `tool` lie within an edge of each other (rest frame) and within the
+    /// tolerance of `quad`: two fronts of one blade (the near and far side of a tube) met, and the
+    /// last triangle between them is cut although the blade crossed no edge there. Looks at the
+    /// tips only.
+    fn fronts_meet(&self, body: &Body, tool: usize, quad: &[Vec3; 4]) -> bool {
+        let Some(tips) = self.tips.get(tool) else {
+            return false;
+        };
+        let n = body.node_count();
+        let nodes = &tips.nodes[..tips.len];
+        let tol = self.tolerance(self.longest);
+        let near = |v: u32| (v as usize) < n && self.tip_near(body, v, quad, tol);
+        nodes.iter().enumerate().any(|(i, &p)| {
+            near(p)
+                && nodes[i + 1..].iter().any(|&q| {
+                    near(q)
+                        && (self.rest_of(body, p) - self.rest_of(body, q)).norm() <= self.longest
+                })
+        })
+    }
+
+    fn tip_near(&self, body: &Body, v: u32, quad: &[Vec3; 4], tol: f64) -> bool {
+        quad_distance(&body.surface.position_in_world[v as usize], quad) <= tol
+    }
+
     fn is_split(&self, c: Option<u16>) -> bool {
         c.is_some_and(|c| matches!(self.crossings[c as usize].choice, Choice::Split))
     }
@@ -794,9 +828,24 @@ impl Cutter {
             let mut diagonal_from_first = self.best_diagonal(body, *t, splits).unwrap_or(true);
             if count >= 2 {
                 let mut best = f64::INFINITY;
+                let tol = self.tolerance(self.longest);
+                let crossed = |v: u32| {
+                    crossing
+                        .iter()
+                        .flatten()
+                        .any(|c| self.crossings[*c as usize].node == v)
+                };
                 for i in 0..count {
                     for j in i + 1..count {
                         let (p, q) = (points[i], points[j]);
+                        // Two tips are joined only where the blade is (fronts meeting).
+                        if !crossed(p)
+                            && !crossed(q)
+                            && !(self.tip_near(body, p, quad, tol)
+                                && self.tip_near(body, q, quad, tol))
+                        {
+                            continue;
+                        }
                         let world_mid = 0.5 * (self.world_of(body, p) + self.world_of(body, q));
                         let d = quad_distance(&world_mid, quad);
                         for diag in [diagonal_from_first, !diagonal_from_first] {
@@ -1268,10 +1317,12 @@ impl Cutter {
             }
         }
         for &v in &before.nodes[..before.len] {
-            let used = self
-                .affected
-                .iter()
-                .any(|a| a.path.is_some_and(|(p, q)| p == v || q == v));
+            // A slit waiting to open (pending) is the path that led to the tip, not a way on.
+            let used = self.affected.iter().any(|a| {
+                a.path.is_some_and(|(p, q)| {
+                    (p == v || q == v) && !self.pending.contains(&(p.min(q), p.max(q)))
+                })
+            });
             if !used {
                 tips.push(v);
             }
