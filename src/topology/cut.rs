@@ -839,11 +839,11 @@ impl Cutter {
                     for j in i + 1..count {
                         let (p, q) = (points[i], points[j]);
                         // Two tips are joined only where the blade is (fronts meeting).
-                        if !crossed(p)
-                            && !crossed(q)
-                            && !(self.tip_near(body, p, quad, tol)
-                                && self.tip_near(body, q, quad, tol))
-                        {
+                        let joined = crossed(p)
+                            || crossed(q)
+                            || (self.tip_near(body, p, quad, tol)
+                                && self.tip_near(body, q, quad, tol));
+                        if !joined {
                             continue;
                         }
                         let world_mid = 0.5 * (self.world_of(body, p) + self.world_of(body, q));
