@@ -9,7 +9,9 @@
 use crate::Vec3;
 use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
-use crate::contact::bodies::{BodyContactCounters, BodyContactScratch, resolve_body_collisions};
+use crate::contact::bodies::{
+    BodyContactCounters, BodyContactScratch, resolve_body_collisions, respond_to_body_contacts,
+};
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
     capture_among, capture_broad_phase, face_broad_phase, face_contacts_among, grasp_nodes,
@@ -723,6 +725,15 @@ impl World {
         self.tick as f64 * self.params.dt
     }
 
+    /// The force the body–body contact response put on each body in the last step (N, world
+    /// frame; indexed like `bodies`; empty when body contact is off). The forces of a touching pair
+    /// are equal and opposite.
+    pub fn body_contact_forces(&self) -> &[Vec3] {
+        self.body_contact
+            .as_ref()
+            .map_or(&[], |s| &s.forces[..s.forces.len().min(self.bodies.len())])
+    }
+
     /// Advances the world by one time step. Allocates nothing.
     ///
     /// Stages: tools move to their pose for the end of the tick; then per body forces → contact
@@ -905,7 +916,12 @@ impl World {
         if systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
+            let response = respond_to_body_contacts(&mut self.bodies, &self.origin, scratch, dt);
             counters.bodies = resolve_body_collisions(&mut self.bodies, &self.origin, scratch, dt);
+            counters.bodies.candidate_pairs += response.candidate_pairs;
+            counters.bodies.overflows += response.overflows;
+            counters.bodies.contacts = response.contacts;
+            counters.bodies.contacts_dropped = response.contacts_dropped;
         }
         clock.enter(Stage::Commit);
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {

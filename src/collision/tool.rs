@@ -87,6 +87,13 @@ pub fn closest_point_on_triangle(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3
 
 /// Distance between segments (p1, q1) and (p2, q2), degenerate segments included.
 pub fn segment_segment_distance(p1: &Vec3, q1: &Vec3, p2: &Vec3, q2: &Vec3) -> f64 {
+    let (s, t) = segment_segment_closest(p1, q1, p2, q2);
+    ((p1 + (q1 - p1) * s) - (p2 + (q2 - p2) * t)).norm()
+}
+
+/// Parameters (s, t) ∈ [0, 1]² of the closest points `p1 + s (q1 − p1)` and `p2 + t (q2 − p2)` of
+/// two segments.
+pub fn segment_segment_closest(p1: &Vec3, q1: &Vec3, p2: &Vec3, q2: &Vec3) -> (f64, f64) {
     let d1 = q1 - p1;
     let d2 = q2 - p2;
     let r = p1 - p2;
@@ -94,7 +101,7 @@ pub fn segment_segment_distance(p1: &Vec3, q1: &Vec3, p2: &Vec3, q2: &Vec3) -> f
     let e = d2.norm_squared();
     let f = d2.dot(&r);
     let tiny = f64::MIN_POSITIVE;
-    let (s, t) = if a <= tiny && e <= tiny {
+    if a <= tiny && e <= tiny {
         (0.0, 0.0)
     } else if a <= tiny {
         (0.0, (f / e).clamp(0.0, 1.0))
@@ -120,8 +127,7 @@ pub fn segment_segment_distance(p1: &Vec3, q1: &Vec3, p2: &Vec3, q2: &Vec3) -> f
             }
             (s, t)
         }
-    };
-    ((p1 + d1 * s) - (p2 + d2 * t)).norm()
+    }
 }
 
 /// Distance between segment (p, q) and triangle (a, b, c); 0 when the segment crosses it.

@@ -16,8 +16,25 @@ use crate::Vec3;
 use crate::body::Body;
 use crate::collision::bvh::TriangleBvh;
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
-use crate::collision::tool::{closest_point_on_triangle, segment_segment_distance};
+use crate::collision::tool::{
+    closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
+};
 use crate::contact::tool::NO_TOOL;
+
+/// Contact skin (m): a vertex that ends the tick within this distance of another body's face is in
+/// contact with it, and the response keeps it from closing the gap further.
+pub const CONTACT_SKIN: f64 = 1e-3;
+/// Distance (m) the response keeps between a vertex and the face it rests on: half the skin, far
+/// above the collision net's precision, so that resting contact never reaches the net (which stops
+/// nodes without friction).
+const REST_DISTANCE: f64 = 0.5 * CONTACT_SKIN;
+/// Sweeps of the contact solver over the contacts of a tick (in a fixed order).
+const SOLVER_ITERATIONS: usize = 8;
+/// Capacity of the contact list (vertex–face contacts between bodies in one tick).
+const CONTACT_CAPACITY: usize = 1 << 14;
+/// Fraction of the shortfall below the rest distance the end positions are parted by per tick
+/// (positions only: no velocity, so no kinetic energy, is added).
+const PART_RATE: f64 = 0.2;
 
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
@@ -39,6 +56,51 @@ pub struct BodyContactCounters {
     /// Broad-phase queries that filled the pair list: the pairs it holds are answered by freezing,
     /// pairs beyond its capacity are not tested (counted so it is never silent).
     pub overflows: u32,
+    /// Vertex–face contacts the response solved (before the collision net).
+    pub contacts: u32,
+    /// Contacts beyond the contact list's capacity (left to the collision net; counted).
+    pub contacts_dropped: u32,
+}
+
+/// A vertex of one body touching a face of another, or an edge touching an edge (or about to,
+/// this tick). Side `a` is a vertex (weights 1, 0) or an edge; side `b` a face or an edge (third
+/// weight 0). The contact point of each side is the weighted sum of its nodes.
+#[derive(Clone, Copy, Debug)]
+struct Contact {
+    /// 0: vertex–face, 1: edge–edge.
+    kind: u8,
+    a: [NodeRef; 2],
+    wa: [f64; 2],
+    b: [NodeRef; 3],
+    wb: [f64; 3],
+    /// Unit normal from side b towards side a at the end of the tick.
+    normal: Vec3,
+    /// Distance between the two contact points at the end of the tick as integrated (m).
+    distance: f64,
+    /// Signed distance along `normal` at the start of the tick (m).
+    gap: f64,
+    /// Coulomb coefficient of the pair.
+    friction: f64,
+    /// 1 / effective mass along any direction (1/kg).
+    compliance: f64,
+    /// Accumulated normal impulse (N·s, ≥ 0) and tangential impulse (N·s) on side a.
+    normal_impulse: f64,
+    tangent_impulse: Vec3,
+}
+
+impl Contact {
+    fn nodes(&self) -> impl Iterator<Item = (NodeRef, f64)> + '_ {
+        (0..2)
+            .map(|k| (self.a[k], self.wa[k]))
+            .chain((0..3).map(|k| (self.b[k], -self.wb[k])))
+            .filter(|(_, w)| *w != 0.0)
+    }
+
+    /// Side a's point less side b's, from `position` of each node.
+    fn relative(&self, position: impl Fn(NodeRef) -> Vec3) -> Vec3 {
+        self.nodes()
+            .fold(Vec3::zeros(), |acc, (r, w)| acc + position(r) * w)
+    }
 }
 
 /// Scratch memory of the stage, sized when the world is assembled.
@@ -46,7 +108,11 @@ pub struct BodyContactCounters {
 pub struct BodyContactScratch {
     bvhs: Vec<TriangleBvh>,
     pairs: Vec<(u32, u32)>,
+    contacts: Vec<Contact>,
     settings: CcdSettings,
+    /// The force the contact response put on each body this tick (N, world frame): its nodes'
+    /// momentum change over the step. Equal and opposite between two touching bodies.
+    pub forces: Vec<Vec3>,
 }
 
 impl BodyContactScratch {
@@ -68,16 +134,19 @@ impl BodyContactScratch {
             bvh.set_built_version(u64::MAX);
             bvh
         }));
+        let count = bvhs.len();
         Self {
             bvhs,
             pairs: Vec::with_capacity(PAIR_CAPACITY),
+            contacts: Vec::with_capacity(CONTACT_CAPACITY),
             settings: CcdSettings::default(),
+            forces: vec![Vec3::zeros(); count],
         }
     }
 }
 
 /// A node of some body.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 struct NodeRef {
     body: usize,
     node: usize,
@@ -256,4 +325,367 @@ pub fn resolve_body_collisions(
         }
     }
     counters
+}
+
+/// Barycentric weights of `q` (a point of the triangle's plane) in triangle (a, b, c).
+fn barycentric(q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
+    let (v0, v1, v2) = (b - a, c - a, q - a);
+    let (d00, d01, d11) = (v0.dot(&v0), v0.dot(&v1), v1.dot(&v1));
+    let (d20, d21) = (v2.dot(&v0), v2.dot(&v1));
+    let denominator = d00 * d11 - d01 * d01;
+    if denominator <= f64::EPSILON * d00 * d11 || !denominator.is_finite() {
+        return None;
+    }
+    let v = (d11 * d20 - d01 * d21) / denominator;
+    let w = (d00 * d21 - d01 * d20) / denominator;
+    Some([1.0 - v - w, v, w])
+}
+
+/// The contact of vertex `v` with face `face` (of another body), if the vertex ends the tick within
+/// the skin of the face, or crossed its plane over the tick inside it.
+fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<Contact> {
+    let end = face.map(|r| end_of(bodies, r));
+    let start = face.map(|r| start_of(bodies, r));
+    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
+    let length = normal.norm();
+    if length <= f64::MIN_POSITIVE || !length.is_finite() {
+        return None;
+    }
+    let face_normal = normal / length;
+    let pe = end_of(bodies, v);
+    let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
+    let distance = (pe - q).norm();
+    let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
+    let on_face = |w: &[f64; 3]| w.iter().all(|&x| x >= -1e-9);
+    // Nearest a side or corner of the face (and outside it): the contact pushes along the line to
+    // that point, not along the face's normal (which would catch a vertex passing under an edge).
+    let inside = weights.iter().all(|&x| x > 1e-9);
+    let normal = if !inside && distance > 1e-12 && (pe - q).dot(&face_normal) > 0.0 {
+        (pe - q) / distance
+    } else {
+        face_normal
+    };
+    let gap = (start_of(bodies, v)
+        - (start[0] * weights[0] + start[1] * weights[1] + start[2] * weights[2]))
+        .dot(&normal);
+    let side = (pe - q).dot(&normal);
+    let near = distance <= CONTACT_SKIN && side >= -CONTACT_SKIN;
+    // Crossed the face over the tick: in front of it at the start, behind it at the end, and over
+    // the face itself (its foot on the plane inside the triangle), not beside it.
+    let foot = pe - face_normal * (pe - end[0]).dot(&face_normal);
+    let crossed = gap >= 0.0
+        && side < 0.0
+        && barycentric(&foot, &end[0], &end[1], &end[2]).is_some_and(|w| on_face(&w));
+    if !(near || crossed) || gap < -CONTACT_SKIN {
+        return None;
+    }
+    Some(Contact {
+        kind: 0,
+        a: [v, v],
+        wa: [1.0, 0.0],
+        b: face,
+        wb: weights,
+        normal,
+        distance,
+        gap,
+        friction: 0.0,
+        compliance: 0.0,
+        normal_impulse: 0.0,
+        tangent_impulse: Vec3::zeros(),
+    })
+}
+
+/// The contact of edge `a` with edge `b` (of another body) where their nearest points are inside
+/// both (nearest at an end, it is a vertex's contact) and within the skin at the end of the tick.
+/// The normal is the line between the nearest points, turned to where `a` was at the start.
+fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Option<Contact> {
+    let (a0, a1) = (end_of(bodies, a[0]), end_of(bodies, a[1]));
+    let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
+    let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
+    const INNER: f64 = 1e-6;
+    if !(INNER..=1.0 - INNER).contains(&s) || !(INNER..=1.0 - INNER).contains(&t) {
+        return None;
+    }
+    let pa = a0 + (a1 - a0) * s;
+    let pb = b0 + (b1 - b0) * t;
+    let distance = (pa - pb).norm();
+    if distance > CONTACT_SKIN {
+        return None;
+    }
+    let start_a = start_of(bodies, a[0]) * (1.0 - s) + start_of(bodies, a[1]) * s;
+    let start_b = start_of(bodies, b[0]) * (1.0 - t) + start_of(bodies, b[1]) * t;
+    let before = start_a - start_b;
+    // The line between the nearest points; when they (nearly) meet, the common perpendicular.
+    let mut normal = if distance > 1e-9 {
+        (pa - pb) / distance
+    } else {
+        let n = (a1 - a0).cross(&(b1 - b0));
+        let length = n.norm();
+        if length <= f64::MIN_POSITIVE {
+            return None;
+        }
+        n / length
+    };
+    if normal.dot(&before) < 0.0 {
+        normal = -normal;
+    }
+    let gap = before.dot(&normal);
+    if gap < -CONTACT_SKIN {
+        return None;
+    }
+    Some(Contact {
+        kind: 1,
+        a,
+        wa: [1.0 - s, s],
+        b: [b[0], b[1], b[1]],
+        wb: [1.0 - t, t, 0.0],
+        normal,
+        distance,
+        gap,
+        friction: 0.0,
+        compliance: 0.0,
+        normal_impulse: 0.0,
+        tangent_impulse: Vec3::zeros(),
+    })
+}
+
+/// Inverse mass of a node for the contact response: 0 for a node a tool moves.
+fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
+    let s = &bodies[r.body].surface;
+    if s.tool_contact[r.node].tool != NO_TOOL {
+        0.0
+    } else {
+        s.inverse_mass[r.node]
+    }
+}
+
+/// The contact response between bodies: every vertex that ends the tick within the skin of another
+/// body's face (or crossed it) gets an inelastic normal impulse and a Coulomb friction impulse,
+/// the opposite of each shared by the face's three nodes with their barycentric weights — so the
+/// linear momentum of the pair does not change and the forces on the two bodies are equal and
+/// opposite. Solved by sweeps over the contacts in a fixed order with accumulated impulses (normal
+/// ≥ 0, tangential within μ times the normal; μ = √(μ_a μ_b) from the two bodies' `friction`). A
+/// vertex may close the gap it had at the start of the tick down to half the skin and no more; end
+/// positions closer than that are parted by a fifth of the shortfall (positions only). Run before the collision
+/// net ([`resolve_body_collisions`]), which still guarantees no pass-through.
+pub fn respond_to_body_contacts(
+    bodies: &mut [Body],
+    group: &[usize],
+    scratch: &mut BodyContactScratch,
+    dt: f64,
+) -> BodyContactCounters {
+    let mut counters = BodyContactCounters::default();
+    scratch.forces.clear();
+    scratch.forces.resize(bodies.len(), Vec3::zeros());
+    if bodies.len() < 2 {
+        return counters;
+    }
+    for (b, bvh) in bodies.iter().zip(scratch.bvhs.iter_mut()) {
+        let s = &b.surface;
+        if !bvh.is_built_for(b.topology_version, s.triangles.len()) {
+            bvh.rebuild(&s.triangles, &s.position_in_world);
+            bvh.set_built_version(b.topology_version);
+        }
+        bvh.refit(
+            &s.triangles,
+            &s.position_in_world,
+            &s.next_position_in_world,
+            CONTACT_SKIN,
+        );
+    }
+    scratch.contacts.clear();
+    let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
+        if contacts.len() == contacts.capacity() {
+            counters.contacts_dropped += 1;
+        } else {
+            contacts.push(c);
+        }
+    };
+    for i in 0..bodies.len() {
+        for j in i + 1..bodies.len() {
+            if group.get(i).is_some_and(|g| group.get(j) == Some(g)) {
+                continue;
+            }
+            scratch.pairs.clear();
+            let (left, right) = scratch.bvhs.split_at_mut(j);
+            if !left[i].overlapping_pairs(&right[0], &mut scratch.pairs) {
+                counters.overflows += 1;
+            }
+            counters.candidate_pairs += scratch.pairs.len() as u32;
+            for k in 0..scratch.pairs.len() {
+                let (ta, tb) = scratch.pairs[k];
+                let fa = bodies[i].surface.triangles[ta as usize].map(|v| NodeRef {
+                    body: i,
+                    node: v as usize,
+                });
+                let fb = bodies[j].surface.triangles[tb as usize].map(|v| NodeRef {
+                    body: j,
+                    node: v as usize,
+                });
+                for (vertices, face) in [(fa, fb), (fb, fa)] {
+                    for v in vertices {
+                        if let Some(c) = vertex_face_contact(bodies, v, face) {
+                            push(&mut scratch.contacts, &mut counters, c);
+                        }
+                    }
+                }
+                for ea in 0..3 {
+                    for eb in 0..3 {
+                        let a = [fa[ea], fa[(ea + 1) % 3]];
+                        let b = [fb[eb], fb[(eb + 1) % 3]];
+                        // Each edge once, from its smaller node (an edge is in two triangles).
+                        let (a, b) = (sorted(a), sorted(b));
+                        if let Some(c) = edge_edge_contact(bodies, a, b) {
+                            push(&mut scratch.contacts, &mut counters, c);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // One contact per vertex (or edge) and other body: the nearest (ties by the other side's
+    // nodes), in a fixed order.
+    let key = |c: &Contact| (c.kind, c.a, c.b[0].body);
+    scratch.contacts.sort_unstable_by(|x, y| {
+        key(x)
+            .cmp(&key(y))
+            .then(x.distance.total_cmp(&y.distance))
+            .then(x.b.cmp(&y.b))
+    });
+    scratch
+        .contacts
+        .dedup_by(|later, first| key(later) == key(first));
+    for c in scratch.contacts.iter_mut() {
+        let (a, b) = (c.a[0].body, c.b[0].body);
+        c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
+        c.compliance = c
+            .nodes()
+            .map(|(r, w)| w * w * inverse_mass_of(bodies, r))
+            .sum::<f64>();
+    }
+    counters.contacts = scratch.contacts.len() as u32;
+    // Two solves with the same contacts: the displacements over the tick (where the nodes end: no
+    // approach past the rest distance, no slip where friction holds; the impulses change the end
+    // velocities alike), then the end velocities along the normals only (a node the multi-rate
+    // scheme sub-stepped can end the tick with a velocity into the contact that its displacement
+    // does not show; left, it would stay in the node without moving it). Each impulse changes the
+    // pair's momentum by equal and opposite amounts.
+    solve(
+        bodies,
+        &mut scratch.contacts,
+        &mut scratch.forces,
+        dt,
+        Solve::Displacement,
+    );
+    for c in scratch.contacts.iter_mut() {
+        c.gap = c.relative(|r| end_of(bodies, r)).dot(&c.normal);
+        c.normal_impulse = 0.0;
+        c.tangent_impulse = Vec3::zeros();
+    }
+    solve(
+        bodies,
+        &mut scratch.contacts,
+        &mut scratch.forces,
+        dt,
+        Solve::Velocity,
+    );
+    // Positions closer than the rest distance at the end of the tick are parted by a fraction of
+    // the shortfall, shared like an impulse (the pair's mass-weighted centre does not move).
+    for k in 0..scratch.contacts.len() {
+        let c = scratch.contacts[k];
+        if c.compliance <= 0.0 {
+            continue;
+        }
+        let gap = c.relative(|r| end_of(bodies, r)).dot(&c.normal);
+        if gap >= REST_DISTANCE {
+            continue;
+        }
+        let push = c.normal * (PART_RATE * (REST_DISTANCE - gap) / c.compliance);
+        for (r, w) in c.nodes() {
+            move_end(bodies, r, push * w);
+        }
+    }
+    counters
+}
+
+/// What a solve of the contact response acts on.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Solve {
+    /// The displacements over the tick (end positions and velocities alike), with friction; `gap`
+    /// is the start-of-tick gap.
+    Displacement,
+    /// The end velocities along the normals; `gap` is the end-of-tick gap.
+    Velocity,
+}
+
+/// Sweeps over `contacts` in order with accumulated impulses (normal ≥ 0, tangential within the
+/// Coulomb cone): a contact may close its gap down to the rest distance over a step and no more,
+/// and does not slip where friction holds.
+fn solve(bodies: &mut [Body], contacts: &mut [Contact], forces: &mut [Vec3], dt: f64, what: Solve) {
+    for _ in 0..SOLVER_ITERATIONS {
+        for c in contacts.iter_mut() {
+            if c.compliance <= 0.0 {
+                continue;
+            }
+            let relative = match what {
+                Solve::Displacement => {
+                    c.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt)
+                }
+                Solve::Velocity => c.relative(|r| bodies[r.body].surface.velocity_in_world[r.node]),
+            };
+            // Normal: close the gap down to the rest distance, no more (closer than that: stop
+            // closing; the positions are parted afterwards).
+            let target = ((REST_DISTANCE - c.gap) / dt).min(0.0);
+            let normal_speed = relative.dot(&c.normal);
+            let accumulated = (c.normal_impulse + (target - normal_speed) / c.compliance).max(0.0);
+            let normal_change = accumulated - c.normal_impulse;
+            c.normal_impulse = accumulated;
+            // Friction: stop the tangential slip, within the Coulomb cone of the normal impulse.
+            let after = relative + c.normal * (normal_change * c.compliance);
+            let slip = after - c.normal * after.dot(&c.normal);
+            let mut tangent = c.tangent_impulse - slip / c.compliance;
+            let friction = if what == Solve::Displacement {
+                c.friction
+            } else {
+                0.0
+            };
+            let limit = friction * c.normal_impulse;
+            let size = tangent.norm();
+            if size > limit {
+                tangent *= limit / size;
+            }
+            let tangent_change = tangent - c.tangent_impulse;
+            c.tangent_impulse = tangent;
+            let impulse = c.normal * normal_change + tangent_change;
+            if impulse == Vec3::zeros() {
+                continue;
+            }
+            for (r, w) in c.nodes() {
+                let inverse_mass = inverse_mass_of(bodies, r);
+                if inverse_mass == 0.0 {
+                    continue;
+                }
+                let dv = impulse * (w * inverse_mass);
+                let s = &mut bodies[r.body].surface;
+                if what == Solve::Displacement {
+                    s.next_position_in_world[r.node] += dv * dt;
+                }
+                s.velocity_in_world[r.node] += dv;
+                forces[r.body] += dv * (s.mass[r.node] / dt);
+            }
+        }
+    }
+}
+
+/// The pair with its smaller node first.
+fn sorted(e: [NodeRef; 2]) -> [NodeRef; 2] {
+    if e[1] < e[0] { [e[1], e[0]] } else { e }
+}
+
+/// Moves node `r`'s end of tick by `shift` × its inverse mass (positions only).
+fn move_end(bodies: &mut [Body], r: NodeRef, shift: Vec3) {
+    let inverse_mass = inverse_mass_of(bodies, r);
+    if inverse_mass != 0.0 {
+        bodies[r.body].surface.next_position_in_world[r.node] += shift * inverse_mass;
+    }
 }
