@@ -17,7 +17,7 @@ use crate::body::Body;
 use crate::collision::bvh::TriangleBvh;
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::tool::{
-    closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
+    Aabb, closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
 };
 use crate::contact::tool::NO_TOOL;
 
@@ -113,6 +113,9 @@ pub struct BodyContactScratch {
     pairs: Vec<(u32, u32)>,
     contacts: Vec<Contact>,
     settings: CcdSettings,
+    /// Each body's swept bounds this tick, and whether they meet another body's.
+    bounds: Vec<Aabb>,
+    near: Vec<bool>,
     /// The force the contact response put on each body this tick (N, world frame): its nodes'
     /// momentum change over the step. Equal and opposite between two touching bodies.
     pub forces: Vec<Vec3>,
@@ -143,6 +146,8 @@ impl BodyContactScratch {
             pairs: Vec::with_capacity(PAIR_CAPACITY),
             contacts: Vec::with_capacity(CONTACT_CAPACITY),
             settings: CcdSettings::default(),
+            bounds: Vec::with_capacity(count),
+            near: Vec::with_capacity(count),
             forces: vec![Vec3::zeros(); count],
         }
     }
@@ -269,25 +274,20 @@ pub fn resolve_body_collisions(
     let mut counters = BodyContactCounters::default();
     for round in 0..=ROUNDS {
         let freeze = round == ROUNDS;
-        for (b, bvh) in bodies.iter().zip(scratch.bvhs.iter_mut()) {
-            let s = &b.surface;
-            // A topology change (subdivision, cut, transection) renumbers triangles: the hierarchy is
-            // built again, in place.
-            if round == 0 && !bvh.is_built_for(b.topology_version, s.triangles.len()) {
-                bvh.rebuild(&s.triangles, &s.position_in_world);
-                bvh.set_built_version(b.topology_version);
+        if !bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near) {
+            break;
+        }
+        for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
+            if scratch.near[k] {
+                refit_hierarchy(b, bvh, 0.0);
             }
-            bvh.refit(
-                &s.triangles,
-                &s.position_in_world,
-                &s.next_position_in_world,
-                0.0,
-            );
         }
         let mut answered = 0;
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
-                if group.get(i).is_some_and(|g| group.get(j) == Some(g)) {
+                if group.get(i).is_some_and(|g| group.get(j) == Some(g))
+                    || !overlap(&scratch.bounds[i], &scratch.bounds[j])
+                {
                     continue;
                 }
                 scratch.pairs.clear();
@@ -501,20 +501,21 @@ pub fn respond_to_body_contacts(
     if bodies.len() < 2 {
         return counters;
     }
-    for (b, bvh) in bodies.iter().zip(scratch.bvhs.iter_mut()) {
-        let s = &b.surface;
-        if !bvh.is_built_for(b.topology_version, s.triangles.len()) {
-            bvh.rebuild(&s.triangles, &s.position_in_world);
-            bvh.set_built_version(b.topology_version);
-        }
-        bvh.refit(
-            &s.triangles,
-            &s.position_in_world,
-            &s.next_position_in_world,
-            CONTACT_SKIN,
-        );
-    }
     scratch.contacts.clear();
+    if !bodies_near(
+        bodies,
+        group,
+        CONTACT_SKIN,
+        &mut scratch.bounds,
+        &mut scratch.near,
+    ) {
+        return counters;
+    }
+    for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
+        if scratch.near[k] {
+            refit_hierarchy(b, bvh, CONTACT_SKIN);
+        }
+    }
     let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
         if contacts.len() == contacts.capacity() {
             counters.contacts_dropped += 1;
@@ -524,7 +525,9 @@ pub fn respond_to_body_contacts(
     };
     for i in 0..bodies.len() {
         for j in i + 1..bodies.len() {
-            if group.get(i).is_some_and(|g| group.get(j) == Some(g)) {
+            if group.get(i).is_some_and(|g| group.get(j) == Some(g))
+                || !overlap(&scratch.bounds[i], &scratch.bounds[j])
+            {
                 continue;
             }
             scratch.pairs.clear();
@@ -627,6 +630,70 @@ pub fn respond_to_body_contacts(
         }
     }
     counters
+}
+
+/// Each body's bounds swept over the tick (start and end positions) grown by `margin`, and whether
+/// they meet those of another body not of its group. Returns whether any pair meets. One pass over
+/// the nodes: bodies apart cost this and nothing more.
+fn bodies_near(
+    bodies: &[Body],
+    group: &[usize],
+    margin: f64,
+    bounds: &mut Vec<Aabb>,
+    near: &mut Vec<bool>,
+) -> bool {
+    bounds.clear();
+    near.clear();
+    for b in bodies {
+        let s = &b.surface;
+        let mut aabb = Aabb::empty();
+        for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
+            aabb.min = aabb.min.inf(&p.inf(q));
+            aabb.max = aabb.max.sup(&p.sup(q));
+        }
+        aabb.inflate(margin);
+        bounds.push(aabb);
+        near.push(false);
+    }
+    let mut any = false;
+    for i in 0..bodies.len() {
+        for j in i + 1..bodies.len() {
+            if group.get(i).is_some_and(|g| group.get(j) == Some(g))
+                || !overlap(&bounds[i], &bounds[j])
+            {
+                continue;
+            }
+            near[i] = true;
+            near[j] = true;
+            any = true;
+        }
+    }
+    any
+}
+
+/// Builds `bvh` again after a topology change (triangles renumbered), then refits it to the tick's
+/// trajectories grown by `margin`.
+fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
+    let s = &b.surface;
+    if !bvh.is_built_for(b.topology_version, s.triangles.len()) {
+        bvh.rebuild(&s.triangles, &s.position_in_world);
+        bvh.set_built_version(b.topology_version);
+    }
+    bvh.refit(
+        &s.triangles,
+        &s.position_in_world,
+        &s.next_position_in_world,
+        margin,
+    );
+}
+
+fn overlap(a: &Aabb, b: &Aabb) -> bool {
+    a.min.x <= b.max.x
+        && a.max.x >= b.min.x
+        && a.min.y <= b.max.y
+        && a.max.y >= b.min.y
+        && a.min.z <= b.max.z
+        && a.max.z >= b.min.z
 }
 
 /// What a solve of the contact response acts on.
