@@ -125,6 +125,41 @@ impl TriangleBvh {
         }
     }
 
+    /// Appends to `found` every triangle whose box (from the last refit) overlaps `aabb`, in a fixed
+    /// order. Returns false when `found` reached its capacity first (the list is then incomplete).
+    pub fn query(&mut self, aabb: &Aabb, found: &mut Vec<u32>) -> bool {
+        if self.nodes.is_empty() {
+            return true;
+        }
+        let stack = &mut self.stack;
+        stack.clear();
+        stack.push((0, 0));
+        while let Some((a, _)) = stack.pop() {
+            let node = &self.nodes[a as usize];
+            if !overlap(&node.aabb, aabb) {
+                continue;
+            }
+            if node.count > 0 {
+                let first = node.first_or_left as usize;
+                for &t in &self.order[first..first + node.count as usize] {
+                    if overlap(&self.triangle_boxes[t as usize], aabb) {
+                        if found.len() == found.capacity() {
+                            return false;
+                        }
+                        found.push(t);
+                    }
+                }
+            } else {
+                if stack.len() + 2 > stack.capacity() {
+                    return false;
+                }
+                stack.push((node.right, 0));
+                stack.push((node.first_or_left, 0));
+            }
+        }
+        true
+    }
+
     /// Appends to `pairs` every (triangle of self, triangle of other) whose boxes overlap, in a fixed
     /// order. Returns false when `pairs` reached its capacity first (the list is then incomplete).
     pub fn overlapping_pairs(&mut self, other: &TriangleBvh, pairs: &mut Vec<(u32, u32)>) -> bool {
@@ -280,5 +315,18 @@ mod tests {
         // A full output list says so.
         let mut small = Vec::with_capacity(3);
         assert!(!bvh_a.overlapping_pairs(&bvh_b, &mut small));
+        // A box query finds exactly the triangles whose boxes meet the box.
+        let mut query = Aabb::empty();
+        query.include(&Vec3::new(0.03, -0.01, -0.02));
+        query.include(&Vec3::new(0.05, 0.02, 0.01));
+        let mut found = Vec::with_capacity(1000);
+        assert!(bvh_a.query(&query, &mut found));
+        found.sort_unstable();
+        let expected: Vec<u32> = (0..a.triangles.len())
+            .filter(|&t| overlap(&tri_box(&a, t), &query))
+            .map(|t| t as u32)
+            .collect();
+        assert!(!expected.is_empty());
+        assert_eq!(found, expected);
     }
 }

@@ -30,6 +30,8 @@ pub const CONTACT_SKIN: f64 = 1e-3;
 const REST_DISTANCE: f64 = 0.5 * CONTACT_SKIN;
 /// Sweeps of the contact solver over the contacts of a tick (in a fixed order).
 const SOLVER_ITERATIONS: usize = 8;
+/// Capacity of the list of faces one vertex's or edge's box meets.
+const FOUND_CAPACITY: usize = 4096;
 /// Capacity of the contact list (vertex–face contacts between bodies in one tick).
 const CONTACT_CAPACITY: usize = 1 << 14;
 /// Fraction of the shortfall below the rest distance the end positions are parted by per tick
@@ -39,12 +41,12 @@ const PART_RATE: f64 = 0.2;
 /// Margin (m) over the nodes' motion below which the collision net runs the continuous query (far
 /// above the query's precision, 1 µm).
 const FILTER_MARGIN: f64 = 1e-5;
+/// Capacity of the collision net's candidate triangle-pair list.
+const PAIR_CAPACITY: usize = 1 << 16;
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
 /// Fraction of the time of impact a colliding node is allowed to travel.
 const STOP_SHORT: f64 = 0.9;
-/// Capacity of the candidate triangle-pair list.
-const PAIR_CAPACITY: usize = 1 << 16;
 
 /// What the body–body stage did in one step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -112,6 +114,7 @@ pub struct BodyContactScratch {
     bvhs: Vec<TriangleBvh>,
     pairs: Vec<(u32, u32)>,
     contacts: Vec<Contact>,
+    found: Vec<u32>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Vec<Aabb>,
@@ -145,6 +148,7 @@ impl BodyContactScratch {
             bvhs,
             pairs: Vec::with_capacity(PAIR_CAPACITY),
             contacts: Vec::with_capacity(CONTACT_CAPACITY),
+            found: Vec::with_capacity(FOUND_CAPACITY),
             settings: CcdSettings::default(),
             bounds: Vec::with_capacity(count),
             near: Vec::with_capacity(count),
@@ -523,42 +527,72 @@ pub fn respond_to_body_contacts(
             contacts.push(c);
         }
     };
+    // Each vertex of a body near another once against that body's faces, each edge once against
+    // its edges (a query of the other's hierarchy with the vertex's or edge's swept box).
     for i in 0..bodies.len() {
-        for j in i + 1..bodies.len() {
-            if group.get(i).is_some_and(|g| group.get(j) == Some(g))
+        for j in 0..bodies.len() {
+            if i == j
+                || group.get(i).is_some_and(|g| group.get(j) == Some(g))
                 || !overlap(&scratch.bounds[i], &scratch.bounds[j])
             {
                 continue;
             }
-            scratch.pairs.clear();
-            let (left, right) = scratch.bvhs.split_at_mut(j);
-            if !left[i].overlapping_pairs(&right[0], &mut scratch.pairs) {
-                counters.overflows += 1;
-            }
-            counters.candidate_pairs += scratch.pairs.len() as u32;
-            for k in 0..scratch.pairs.len() {
-                let (ta, tb) = scratch.pairs[k];
-                let fa = bodies[i].surface.triangles[ta as usize].map(|v| NodeRef {
-                    body: i,
-                    node: v as usize,
-                });
-                let fb = bodies[j].surface.triangles[tb as usize].map(|v| NodeRef {
-                    body: j,
-                    node: v as usize,
-                });
-                for (vertices, face) in [(fa, fb), (fb, fa)] {
-                    for v in vertices {
-                        if let Some(c) = vertex_face_contact(bodies, v, face) {
-                            push(&mut scratch.contacts, &mut counters, c);
-                        }
+            let other = scratch.bounds[j];
+            let swept = |nodes: &[usize]| {
+                let mut aabb = swept_box(&bodies[i], nodes);
+                aabb.inflate(CONTACT_SKIN);
+                aabb
+            };
+            for v in 0..bodies[i].node_count() {
+                let aabb = swept(&[v]);
+                if !overlap(&aabb, &other) {
+                    continue;
+                }
+                scratch.found.clear();
+                if !scratch.bvhs[j].query(&aabb, &mut scratch.found) {
+                    counters.overflows += 1;
+                }
+                counters.candidate_pairs += scratch.found.len() as u32;
+                let vertex = NodeRef { body: i, node: v };
+                for k in 0..scratch.found.len() {
+                    let face =
+                        bodies[j].surface.triangles[scratch.found[k] as usize].map(|w| NodeRef {
+                            body: j,
+                            node: w as usize,
+                        });
+                    if let Some(c) = vertex_face_contact(bodies, vertex, face) {
+                        push(&mut scratch.contacts, &mut counters, c);
                     }
                 }
-                for ea in 0..3 {
-                    for eb in 0..3 {
-                        let a = [fa[ea], fa[(ea + 1) % 3]];
-                        let b = [fb[eb], fb[(eb + 1) % 3]];
-                        // Each edge once, from its smaller node (an edge is in two triangles).
-                        let (a, b) = (sorted(a), sorted(b));
+            }
+            if j < i {
+                continue;
+            }
+            for e in 0..bodies[i].edges.len() {
+                let (ea, eb) = (bodies[i].edges.a[e] as usize, bodies[i].edges.b[e] as usize);
+                let aabb = swept(&[ea, eb]);
+                if !overlap(&aabb, &other) {
+                    continue;
+                }
+                scratch.found.clear();
+                if !scratch.bvhs[j].query(&aabb, &mut scratch.found) {
+                    counters.overflows += 1;
+                }
+                counters.candidate_pairs += scratch.found.len() as u32;
+                let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+                for k in 0..scratch.found.len() {
+                    let t = bodies[j].surface.triangles[scratch.found[k] as usize];
+                    for side in 0..3 {
+                        let b = sorted([
+                            NodeRef {
+                                body: j,
+                                node: t[side] as usize,
+                            },
+                            NodeRef {
+                                body: j,
+                                node: t[(side + 1) % 3] as usize,
+                            },
+                        ]);
                         if let Some(c) = edge_edge_contact(bodies, a, b) {
                             push(&mut scratch.contacts, &mut counters, c);
                         }
@@ -685,6 +719,17 @@ fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
         &s.next_position_in_world,
         margin,
     );
+}
+
+/// The box of `nodes` of `body` over the tick (start and end positions).
+fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
+    let s = &body.surface;
+    let mut aabb = Aabb::empty();
+    for &v in nodes {
+        aabb.include(&s.position_in_world[v]);
+        aabb.include(&s.next_position_in_world[v]);
+    }
+    aabb
 }
 
 fn overlap(a: &Aabb, b: &Aabb) -> bool {
