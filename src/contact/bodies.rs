@@ -1,16 +1,21 @@
 //! Contact between deformable bodies (paper §5: collisions are found on trajectories).
 //!
 //! After every other stage has decided where the nodes end the tick, the trajectories of different
-//! bodies are checked against each other: the broad phase ([`TriangleBvh`], swept boxes) lists the
-//! triangle pairs that may meet, and the narrow phase tests each pair's vertices against the other's
-//! face (both ways) and each edge against the other's edges, with the earliest time of impact.
+//! bodies meet in two stages. Both look first at each body's bounds swept over the tick, and refit
+//! and query the hierarchies ([`TriangleBvh`], swept boxes) only of bodies whose bounds meet.
 //!
-//! The response is inelastic and conservative: the free nodes of a colliding pair stop short of the
-//! impact, at 90 % of the (lower-bound) time of impact along their own trajectory, and take the
-//! velocity that brings them there. This repeats a few rounds, as stopping some nodes can expose other
-//! pairs; what still collides after that is frozen at its start-of-tick position, where the previous
-//! tick left everything apart. Primitives that touch at the start of the tick and separate over it are
-//! left alone, so bodies can part. Nodes held by a tool are moved by the tool only.
+//! 1. The **response** ([`respond_to_body_contacts`]): vertex–face and edge–edge contacts within a
+//!    skin, answered with inelastic normal impulses and Coulomb friction, equal and opposite on the
+//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law).
+//! 2. The **net** ([`resolve_body_collisions`]): the broad phase lists the triangle pairs that may
+//!    meet, and the narrow phase tests each pair's vertices against the other's face (both ways) and
+//!    each edge against the other's edges, with the earliest time of impact. What collides stops
+//!    short of the impact, at 90 % of the (lower-bound) time of impact along its own trajectory, and
+//!    takes the velocity that brings it there. This repeats a few rounds, as stopping some nodes can
+//!    expose other pairs; what still collides after that is frozen at its start-of-tick position,
+//!    where the previous tick left everything apart. Primitives that touch at the start of the tick
+//!    and separate over it are left alone, so bodies can part. Nodes held by a tool are moved by the
+//!    tool only.
 
 use crate::Vec3;
 use crate::body::Body;
