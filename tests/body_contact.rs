@@ -210,18 +210,6 @@ fn block_on_tilted_slab(theta: f64, friction: f64) -> World {
     World::from_scene(&common::scene(&text))
 }
 
-/// Least-squares acceleration of s(t) = s0 + v0 t + a t²/2.
-fn fitted_acceleration(times: &[f64], s: &[f64]) -> f64 {
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut atb = nalgebra::Vector3::<f64>::zeros();
-    for (&t, &y) in times.iter().zip(s) {
-        let row = nalgebra::Vector3::new(1.0, t, t * t / 2.0);
-        ata += row * row.transpose();
-        atb += row * y;
-    }
-    (ata.try_inverse().unwrap() * atb)[2]
-}
-
 /// The paper's inclined-plane test, body on body: a block on a tilted slab (another deformable body)
 /// stays below atan(μ) and above it slides with g (sin θ − μ cos θ) within 5 %; the contact forces on
 /// the two bodies are equal and opposite every tick; no node of one ends inside the other.
@@ -262,7 +250,7 @@ fn a_block_on_a_tilted_body_sticks_or_slides_with_coulomb_friction() {
                 s.push(world.bodies[1].surface_centre_of_mass().dot(&downhill));
             }
         }
-        let a = fitted_acceleration(&times, &s);
+        let a = common::fitted_acceleration(&times, &s);
         let travel = s.last().unwrap() - s[0];
         eprintln!(
             "θ = {theta_deg}°, μ = {mu}: a = {a:.4} m/s², expected {expected:.4}; travel over the window {travel:.3e} m; contact force up to {largest:.3} N, worst sum {worst_sum:.2e} N; {:?}",

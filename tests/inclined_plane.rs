@@ -93,19 +93,6 @@ fn block_below_the_static_friction_angle_stays_put() {
     assert!(slip < 1e-6, "nodes on the plane slipped {slip} m");
 }
 
-/// Least-squares acceleration of s(t) = s0 + v0 t + a t²/2.
-fn fitted_acceleration(times: &[f64], s: &[f64]) -> f64 {
-    // Normal equations for [1, t, t²/2].
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut atb = nalgebra::Vector3::<f64>::zeros();
-    for (&t, &y) in times.iter().zip(s) {
-        let row = nalgebra::Vector3::new(1.0, t, t * t / 2.0);
-        ata += row * row.transpose();
-        atb += row * y;
-    }
-    (ata.try_inverse().unwrap() * atb)[2]
-}
-
 #[test]
 fn block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
     for (theta_deg, mu) in [(30.0f64, 0.3), (25.0, 0.2), (35.0, 0.5)] {
@@ -124,7 +111,7 @@ fn block_above_the_friction_angle_slides_at_g_sin_minus_mu_cos() {
                     .dot(&downhill(theta)),
             );
         }
-        let a = fitted_acceleration(&times, &s);
+        let a = common::fitted_acceleration(&times, &s);
         let expected = 9.81 * (theta.sin() - mu * theta.cos());
         let relative = (a - expected).abs() / expected;
         eprintln!(

@@ -136,13 +136,13 @@ impl TriangleBvh {
         stack.push((0, 0));
         while let Some((a, _)) = stack.pop() {
             let node = &self.nodes[a as usize];
-            if !overlap(&node.aabb, aabb) {
+            if !node.aabb.overlaps(aabb) {
                 continue;
             }
             if node.count > 0 {
                 let first = node.first_or_left as usize;
                 for &t in &self.order[first..first + node.count as usize] {
-                    if overlap(&self.triangle_boxes[t as usize], aabb) {
+                    if self.triangle_boxes[t as usize].overlaps(aabb) {
                         if found.len() == found.capacity() {
                             return false;
                         }
@@ -171,7 +171,7 @@ impl TriangleBvh {
         stack.push((0, 0));
         while let Some((a, b)) = stack.pop() {
             let (na, nb) = (&self.nodes[a as usize], &other.nodes[b as usize]);
-            if !overlap(&na.aabb, &nb.aabb) {
+            if !na.aabb.overlaps(&nb.aabb) {
                 continue;
             }
             match (na.count > 0, nb.count > 0) {
@@ -183,7 +183,7 @@ impl TriangleBvh {
                                 &self.triangle_boxes[ta as usize],
                                 &other.triangle_boxes[tb as usize],
                             );
-                            if !overlap(ba, bb) {
+                            if !ba.overlaps(bb) {
                                 continue;
                             }
                             if pairs.len() == pairs.capacity() {
@@ -220,15 +220,6 @@ impl TriangleBvh {
         }
         true
     }
-}
-
-fn overlap(a: &Aabb, b: &Aabb) -> bool {
-    a.min.x <= b.max.x
-        && a.max.x >= b.min.x
-        && a.min.y <= b.max.y
-        && a.max.y >= b.min.y
-        && a.min.z <= b.max.z
-        && a.max.z >= b.min.z
 }
 
 /// Builds the subtree over `order[begin..end]` and returns its node index.
@@ -304,7 +295,7 @@ mod tests {
         let mut brute = Vec::new();
         for ta in 0..a.triangles.len() {
             for tb in 0..b.triangles.len() {
-                if overlap(&tri_box(&a, ta), &tri_box(&b, tb)) {
+                if tri_box(&a, ta).overlaps(&tri_box(&b, tb)) {
                     brute.push((ta as u32, tb as u32));
                 }
             }
@@ -323,7 +314,7 @@ mod tests {
         assert!(bvh_a.query(&query, &mut found));
         found.sort_unstable();
         let expected: Vec<u32> = (0..a.triangles.len())
-            .filter(|&t| overlap(&tri_box(&a, t), &query))
+            .filter(|&t| tri_box(&a, t).overlaps(&query))
             .map(|t| t as u32)
             .collect();
         assert!(!expected.is_empty());

@@ -251,6 +251,16 @@ impl Aabb {
         code
     }
 
+    /// True when the two boxes overlap (touching counts).
+    pub fn overlaps(&self, other: &Aabb) -> bool {
+        self.min.x <= other.max.x
+            && self.max.x >= other.min.x
+            && self.min.y <= other.max.y
+            && self.max.y >= other.min.y
+            && self.min.z <= other.max.z
+            && self.max.z >= other.min.z
+    }
+
     /// True when the segment from `p` to `q` may meet the box (its own box overlaps).
     pub fn overlaps_segment(&self, p: &Vec3, q: &Vec3) -> bool {
         let lo = p.inf(q);

@@ -283,7 +283,9 @@ pub fn resolve_body_collisions(
     let mut counters = BodyContactCounters::default();
     for round in 0..=ROUNDS {
         let freeze = round == ROUNDS;
-        if !bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near) {
+        // The bounds of the first round hold for the later ones: stopping short only shortens
+        // trajectories.
+        if round == 0 && !bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near) {
             break;
         }
         for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
@@ -295,7 +297,7 @@ pub fn resolve_body_collisions(
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
                 if group.get(i).is_some_and(|g| group.get(j) == Some(g))
-                    || !overlap(&scratch.bounds[i], &scratch.bounds[j])
+                    || !scratch.bounds[i].overlaps(&scratch.bounds[j])
                 {
                     continue;
                 }
@@ -538,7 +540,7 @@ pub fn respond_to_body_contacts(
         for j in 0..bodies.len() {
             if i == j
                 || group.get(i).is_some_and(|g| group.get(j) == Some(g))
-                || !overlap(&scratch.bounds[i], &scratch.bounds[j])
+                || !scratch.bounds[i].overlaps(&scratch.bounds[j])
             {
                 continue;
             }
@@ -550,14 +552,15 @@ pub fn respond_to_body_contacts(
             };
             for v in 0..bodies[i].node_count() {
                 let aabb = swept(&[v]);
-                if !overlap(&aabb, &other) {
+                if !aabb.overlaps(&other) {
                     continue;
                 }
-                scratch.found.clear();
-                if !scratch.bvhs[j].query(&aabb, &mut scratch.found) {
-                    counters.overflows += 1;
-                }
-                counters.candidate_pairs += scratch.found.len() as u32;
+                query_into(
+                    &mut scratch.bvhs[j],
+                    &aabb,
+                    &mut scratch.found,
+                    &mut counters,
+                );
                 let vertex = NodeRef { body: i, node: v };
                 for k in 0..scratch.found.len() {
                     let face =
@@ -576,14 +579,15 @@ pub fn respond_to_body_contacts(
             for e in 0..bodies[i].edges.len() {
                 let (ea, eb) = (bodies[i].edges.a[e] as usize, bodies[i].edges.b[e] as usize);
                 let aabb = swept(&[ea, eb]);
-                if !overlap(&aabb, &other) {
+                if !aabb.overlaps(&other) {
                     continue;
                 }
-                scratch.found.clear();
-                if !scratch.bvhs[j].query(&aabb, &mut scratch.found) {
-                    counters.overflows += 1;
-                }
-                counters.candidate_pairs += scratch.found.len() as u32;
+                query_into(
+                    &mut scratch.bvhs[j],
+                    &aabb,
+                    &mut scratch.found,
+                    &mut counters,
+                );
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
                 for k in 0..scratch.found.len() {
                     let t = bodies[j].surface.triangles[scratch.found[k] as usize];
@@ -698,7 +702,7 @@ fn bodies_near(
     for i in 0..bodies.len() {
         for j in i + 1..bodies.len() {
             if group.get(i).is_some_and(|g| group.get(j) == Some(g))
-                || !overlap(&bounds[i], &bounds[j])
+                || !bounds[i].overlaps(&bounds[j])
             {
                 continue;
             }
@@ -726,6 +730,20 @@ fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
     );
 }
 
+/// The triangles of `bvh` whose boxes meet `aabb`, into `found` (a full list counted as an overflow).
+fn query_into(
+    bvh: &mut TriangleBvh,
+    aabb: &Aabb,
+    found: &mut Vec<u32>,
+    counters: &mut BodyContactCounters,
+) {
+    found.clear();
+    if !bvh.query(aabb, found) {
+        counters.overflows += 1;
+    }
+    counters.candidate_pairs += found.len() as u32;
+}
+
 /// The box of `nodes` of `body` over the tick (start and end positions).
 fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
     let s = &body.surface;
@@ -735,15 +753,6 @@ fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
         aabb.include(&s.next_position_in_world[v]);
     }
     aabb
-}
-
-fn overlap(a: &Aabb, b: &Aabb) -> bool {
-    a.min.x <= b.max.x
-        && a.max.x >= b.min.x
-        && a.min.y <= b.max.y
-        && a.max.y >= b.min.y
-        && a.min.z <= b.max.z
-        && a.max.z >= b.min.z
 }
 
 /// What a solve of the contact response acts on.

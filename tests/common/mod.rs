@@ -267,3 +267,16 @@ pub fn total_energy<'a>(
         .map(|b| palpa::dynamics::guard::body_energy(b, gravity))
         .sum()
 }
+
+/// Least-squares acceleration of s(t) = s0 + v0 t + a t²/2.
+pub fn fitted_acceleration(times: &[f64], s: &[f64]) -> f64 {
+    // Normal equations for [1, t, t²/2].
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for (&t, &y) in times.iter().zip(s) {
+        let row = nalgebra::Vector3::new(1.0, t, t * t / 2.0);
+        ata += row * row.transpose();
+        atb += row * y;
+    }
+    (ata.try_inverse().unwrap() * atb)[2]
+}
