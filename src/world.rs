@@ -18,6 +18,7 @@ use crate::contact::tool::{
     hold_contact_nodes, jaws_touch, push_out_of_tools, release_nodes,
 };
 use crate::dynamics::Integrator;
+use crate::dynamics::attachment::Attachments;
 use crate::dynamics::forces::accumulate_body_forces;
 use crate::dynamics::guard::{Guard, body_energy};
 use crate::dynamics::implicit::Implicit;
@@ -167,6 +168,8 @@ pub struct World {
     pieces_named: Vec<u32>,
     /// Bodies reserved up front for the pieces of transections, with their solvers and scratch.
     spares: Vec<Option<Spare>>,
+    /// Ligaments: ties between bodies and to the world.
+    attachments: Attachments,
 }
 
 /// A body reserved for a piece of a transection: buffers sized like its origin's, its solver,
@@ -409,6 +412,7 @@ impl World {
             origin: Vec::new(),
             pieces_named: Vec::new(),
             spares: Vec::new(),
+            attachments: Attachments::default(),
         };
         world.assemble();
         world
@@ -425,6 +429,7 @@ impl World {
                 &spec.placement,
             ));
         }
+        world.attachments = Attachments::new(&scene.attachments, &world.bodies);
         world.obstacles = scene.obstacles.clone();
         world.tools = scene
             .tools
@@ -715,6 +720,11 @@ impl World {
         self.systems.body_contact = self.bodies.len() >= 2 && self.body_contact.is_some();
     }
 
+    /// The attachments (ligaments) and their forces of the last tick.
+    pub fn attachments(&self) -> &Attachments {
+        &self.attachments
+    }
+
     /// The systems this world runs.
     pub fn systems(&self) -> Systems {
         self.systems
@@ -801,13 +811,19 @@ impl World {
         if systems.tool_contact {
             self.update_grasps(&mut counters);
         }
-        for ((((body, solver), refinement), broad), cutter) in self
+        let attached = !self.attachments.is_empty();
+        if attached {
+            clock.enter(Stage::Forces);
+            self.attachments.compute(&self.bodies, dt);
+        }
+        for (b, ((((body, solver), refinement), broad), cutter)) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
             .zip(self.broad.iter_mut())
             .zip(self.cutters.iter_mut())
+            .enumerate()
         {
             // Blades that cut this body pass through it instead of pressing (after pressing through
             // its resistance, when it has one).
@@ -821,6 +837,14 @@ impl World {
             }
             clock.enter(Stage::Forces);
             accumulate_body_forces(body, &gravity);
+            if attached {
+                for (node, force) in self.attachments.forces_on(b) {
+                    body.surface.force_in_world[node] += force;
+                    if let BodySolver::Multirate(m) = solver {
+                        m.add_external_force(node, &force);
+                    }
+                }
+            }
             clock.enter(Stage::Contact);
             if systems.tool_contact {
                 hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
@@ -841,6 +865,11 @@ impl World {
                     )
                 }
                 BodySolver::Implicit(i) => i.integrate(body, dt),
+            }
+            if attached && let BodySolver::Multirate(m) = solver {
+                for (node, _) in self.attachments.forces_on(b) {
+                    m.clear_external_force(node);
+                }
             }
             if systems.tool_contact {
                 for (tool_index, tool) in self.tools.iter_mut().enumerate() {
@@ -1037,14 +1066,15 @@ impl World {
             .map(f64::abs)
             .sum();
         let check_energy = (self.tick + 1) % ENERGY_CHECK_EVERY == 0;
-        for (((body, guard), refinement), cutter) in self
+        for (b, (((body, guard), refinement), cutter)) in self
             .bodies
             .iter_mut()
             .zip(self.guards.iter_mut())
             .zip(&self.refinements)
             .zip(&self.cutters)
+            .enumerate()
         {
-            guard.add_work(tool_work);
+            guard.add_work(tool_work + self.attachments.work_on(b));
             let refined_now = refinement
                 .as_ref()
                 .is_some_and(|r| r.changed_at == self.tick + 1)

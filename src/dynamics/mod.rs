@@ -1,6 +1,7 @@
 //! Forces, integration and stability analysis of the bodies (MODEL.md §2–3).
 
 pub mod assess;
+pub mod attachment;
 pub mod forces;
 pub mod guard;
 pub mod implicit;

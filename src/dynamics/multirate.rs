@@ -74,6 +74,9 @@ pub struct Multirate {
     bound_damping: Vec<f64>,
     /// Nodes that touched an obstacle during the substeps of this step.
     touched: Vec<bool>,
+    /// Forces from outside the body held over the step (attachments), per node (N, world): the
+    /// substeps recompute the nodes' own forces, and add these.
+    external: Vec<Vec3>,
     /// The part of the sub-stepped links' reaction the rigid component has not received yet (N and
     /// N·m, as a force over one update of the rigid component): the links of nodes stepped between
     /// its updates pull with forces it did not see when it moved. It takes them at its next update,
@@ -117,6 +120,7 @@ impl Multirate {
             bound_stiffness: Vec::with_capacity(n),
             bound_damping: Vec::with_capacity(n),
             touched: Vec::with_capacity(n),
+            external: Vec::with_capacity(n),
             carried_force: Vec3::zeros(),
             carried_torque: Vec3::zeros(),
             centre_interval: [Vec3::zeros(); 2],
@@ -125,11 +129,28 @@ impl Multirate {
         multirate
     }
 
+    /// Adds a force from outside the body (an attachment's) on `node` for the next step; the
+    /// caller also adds it to the node's `force_in_world` and clears it after the step.
+    pub fn add_external_force(&mut self, node: usize, force: &Vec3) {
+        if let Some(f) = self.external.get_mut(node) {
+            *f += force;
+        }
+    }
+
+    /// Clears the outside force on `node`.
+    pub fn clear_external_force(&mut self, node: usize) {
+        if let Some(f) = self.external.get_mut(node) {
+            *f = Vec3::zeros();
+        }
+    }
+
     /// Classifies the nodes again after the body's topology changed, reusing the scratch (allocates
     /// nothing while the body stays within the room reserved).
     pub fn rebuild(&mut self, body: &Body, dt: f64) {
         let s = &body.surface;
         let n = s.mass.len();
+        self.external.clear();
+        self.external.resize(n, Vec3::zeros());
         node_bounds_into(body, &mut self.bound_stiffness, &mut self.bound_damping);
         self.fast.clear();
         self.deep.clear();
@@ -375,7 +396,8 @@ impl Multirate {
                 let centre_now = centre + (rigid_end.position_in_world - centre) * fraction;
                 self.carried_force -= link * share;
                 self.carried_torque -= (homologue - centre_now).cross(&link) * share;
-                let mut force = gravity * s.mass[i] - v * s.air_damping[i] + link;
+                let mut force =
+                    gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
                 for at in self.start[k] as usize..self.start[k + 1] as usize {
                     let j = self.neighbour[at] as usize;
                     let edge = self.edge[at] as usize;
@@ -480,7 +502,7 @@ impl Multirate {
                 };
                 reaction_force -= link * weight;
                 reaction_torque -= arm.cross(&link) * weight;
-                self.f[i] = gravity * s.mass[i] - v * s.air_damping[i] + link;
+                self.f[i] = gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
             }
             for k in 0..e.len() {
                 let (a, b) = (e.a[k] as usize, e.b[k] as usize);
@@ -600,7 +622,7 @@ impl Multirate {
             let arm = homologue - (c0 + (c1 - c0) * phase_base);
             self.carried_force -= link * weight;
             self.carried_torque -= arm.cross(&link) * weight;
-            let mut force = gravity * s.mass[i] - v * s.air_damping[i] + link;
+            let mut force = gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
             for at in self.start[k] as usize..self.start[k + 1] as usize {
                 let j = self.neighbour[at] as usize;
                 let edge = self.edge[at] as usize;

@@ -19,6 +19,7 @@ use crate::Vec3;
 use crate::body::{BodyParams, Placement};
 use crate::collision::obstacle::{Obstacle, ObstacleShape};
 use crate::dynamics::Integrator;
+use crate::dynamics::attachment::{AttachmentSpec, Tie, WORLD};
 use crate::tool::{GraspSettings, Keyframe, ToolInput, ToolPose, ToolShape};
 use mesh::SurfaceMesh;
 use schema::*;
@@ -30,6 +31,10 @@ pub const DEFAULT_SCENE: &str = include_str!("../../scenes/organ.toml");
 /// and a bound on the memory a short scene file can ask for (a few lines of bodies with 7
 /// subdivisions each would otherwise allocate without limit).
 pub const MAX_SCENE_VERTICES: usize = 1 << 20;
+
+/// Largest √(k/m)·Δt and (c/m)·Δt an attachment's ties may give a node they pull: their forces are
+/// explicit, and the scheme is stable with a wide margin below this.
+pub const ATTACHMENT_STEP_LIMIT: f64 = 0.5;
 
 /// Parameters of the world.
 #[derive(Clone, Debug, PartialEq)]
@@ -100,6 +105,8 @@ pub struct Scene {
     pub obstacles: Vec<Obstacle>,
     /// Tools, in file order.
     pub tools: Vec<ToolSpec>,
+    /// Attachments (ligaments), in file order, their ties resolved.
+    pub attachments: Vec<AttachmentSpec>,
     /// Files the scene loaded (meshes), in load order: the path as written in the scene (relative to
     /// the scene file) and where it was found.
     pub asset_names: Vec<(String, PathBuf)>,
@@ -220,6 +227,18 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
         )?;
         tools.push(t);
     }
+    let mut attachments: Vec<AttachmentSpec> = Vec::with_capacity(file.attachment.len());
+    for (index, attachment) in file.attachment.iter().enumerate() {
+        let a = ctx.attachment(attachment, index, &bodies, world.dt)?;
+        ctx.unique(
+            attachments.iter().map(|a| &a.name),
+            &a.name,
+            attachment,
+            &attachment.get_ref().name,
+            "attachment",
+        )?;
+        attachments.push(a);
+    }
     Ok(Scene {
         name: name.to_string(),
         source: text.to_string(),
@@ -227,6 +246,7 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
         bodies,
         obstacles,
         tools,
+        attachments,
         asset_names: assets,
     })
 }
@@ -1012,6 +1032,195 @@ impl Ctx<'_> {
         mesh.recentre_on_surface_centre();
         mesh.reorder_for_locality();
         Ok((mesh, source))
+    }
+
+    /// An `[[attachment]]` table, its ties resolved on the bodies as placed.
+    fn attachment(
+        &self,
+        table: &Spanned<AttachmentSection>,
+        index: usize,
+        bodies: &[BodySpec],
+        dt: f64,
+    ) -> Result<AttachmentSpec, SceneError> {
+        let a = table.get_ref();
+        let name = self.name(a.name.as_ref(), format!("attachment{index}"))?;
+        let names = || {
+            bodies
+                .iter()
+                .map(|b| format!("`{}`", b.name))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let find = |value: &Spanned<String>, key: &str| -> Result<usize, SceneError> {
+            bodies
+                .iter()
+                .position(|b| &b.name == value.get_ref())
+                .ok_or_else(|| {
+                    self.error(
+                        value.span(),
+                        format!(
+                            "`{key}` of attachment `{name}` names no body: found {:?}, expected one of {}",
+                            value.get_ref(),
+                            names()
+                        ),
+                    )
+                })
+        };
+        let Some(body_value) = &a.body else {
+            return Err(self.error(
+                table.span(),
+                format!("attachment `{name}` needs a `body` (the name of the body it ties)"),
+            ));
+        };
+        let body = find(body_value, "body")?;
+        let Some(at_value) = &a.at else {
+            return Err(self.error(
+                table.span(),
+                format!(
+                    "attachment `{name}` needs `at`, the centre of the tied region (m, body frame)"
+                ),
+            ));
+        };
+        let at = self.vector(Some(at_value), Vec3::zeros(), "at")?;
+        let radius = self.number(a.radius.as_ref(), 0.01, "radius", Rule::Positive)?;
+        let stiffness = self.number(a.stiffness.as_ref(), 50.0, "stiffness", Rule::Positive)?;
+        let damping = self.number(a.damping.as_ref(), 0.5, "damping", Rule::NonNegative)?;
+        let to = match &a.to {
+            None => None,
+            Some(v) if v.get_ref() == "world" => None,
+            Some(v) => {
+                let o = find(v, "to")?;
+                if o == body {
+                    return Err(self.error(
+                        v.span(),
+                        format!(
+                            "attachment `{name}` ties body `{}` to itself",
+                            bodies[o].name
+                        ),
+                    ));
+                }
+                Some(o)
+            }
+        };
+        for b in std::iter::once(body).chain(to) {
+            let params = &bodies[b].params;
+            let changing = if params.cutting.is_some() {
+                Some("cutting")
+            } else if params.tearing.is_some() {
+                Some("tearing")
+            } else {
+                None
+            };
+            if let Some(key) = changing {
+                return Err(self.error(
+                    table.span(),
+                    format!(
+                        "attachment `{name}`: body `{}` has `{key}` on; attachments to a body that can be cut or torn apart are not supported yet",
+                        bodies[b].name
+                    ),
+                ));
+            }
+        }
+
+        // The region, and its nodes' masses (the surface mass spread by area, as the body does).
+        let spec = &bodies[body];
+        let masses = |b: &BodySpec| -> Vec<f64> {
+            let areas = b.mesh.vertex_areas();
+            let total: f64 = areas.iter().sum();
+            let n = areas.len() as f64;
+            areas
+                .iter()
+                .map(|a| {
+                    if total > 0.0 {
+                        b.params.surface_mass * a / total
+                    } else {
+                        b.params.surface_mass / n
+                    }
+                })
+                .collect()
+        };
+        let mass = masses(spec);
+        let region: Vec<u32> = (0..spec.mesh.positions_in_body.len() as u32)
+            .filter(|&i| (spec.mesh.positions_in_body[i as usize] - at).norm() <= radius)
+            .collect();
+        if region.is_empty() {
+            let nearest = spec
+                .mesh
+                .positions_in_body
+                .iter()
+                .map(|p| (p - at).norm())
+                .fold(f64::INFINITY, f64::min);
+            return Err(self.error(
+                table.span(),
+                format!(
+                    "attachment `{name}`: no node of body `{}` within `radius` = {radius} m of `at` (the nearest is {nearest:.4} m away)",
+                    spec.name
+                ),
+            ));
+        }
+        let region_mass: f64 = region.iter().map(|&i| mass[i as usize]).sum();
+        let world_of = |b: &BodySpec, i: usize| {
+            b.placement.position_in_world
+                + b.placement.world_from_body * b.mesh.positions_in_body[i]
+        };
+        let mut ties = Vec::with_capacity(region.len());
+        for &i in &region {
+            let other_node = match to {
+                None => WORLD,
+                Some(o) => {
+                    let x = world_of(spec, i as usize);
+                    let other = &bodies[o];
+                    let mut best = (f64::INFINITY, 0u32);
+                    for j in 0..other.mesh.positions_in_body.len() {
+                        let d = (world_of(other, j) - x).norm_squared();
+                        if d < best.0 {
+                            best = (d, j as u32);
+                        }
+                    }
+                    best.1
+                }
+            };
+            let share = mass[i as usize] / region_mass;
+            ties.push(Tie {
+                node: i,
+                other_node,
+                stiffness: stiffness * share,
+                damping: damping * share,
+            });
+        }
+
+        // Explicit ties must be stable at dt on every node they pull: √(k/m) Δt and (c/m) Δt at
+        // most ATTACHMENT_STEP_LIMIT (on the region, k/m is the attachment's k/M).
+        let mut worst = (stiffness / region_mass).sqrt() * dt;
+        let mut worst_damping = damping / region_mass * dt;
+        if let Some(o) = to {
+            let other_mass = masses(&bodies[o]);
+            let mut pull = vec![(0.0f64, 0.0f64); other_mass.len()];
+            for t in &ties {
+                let p = &mut pull[t.other_node as usize];
+                p.0 += t.stiffness;
+                p.1 += t.damping;
+            }
+            for ((k, c), m) in pull.iter().zip(&other_mass) {
+                worst = worst.max((k / m).sqrt() * dt);
+                worst_damping = worst_damping.max(c / m * dt);
+            }
+        }
+        if worst > ATTACHMENT_STEP_LIMIT || worst_damping > ATTACHMENT_STEP_LIMIT {
+            let span = a.stiffness.as_ref().map_or(table.span(), |s| s.span());
+            return Err(self.error(
+                span,
+                format!(
+                    "attachment `{name}` is too stiff for dt = {dt} s on the nodes it ties: √(k/m)·dt = {worst:.3} and (c/m)·dt = {worst_damping:.3}, both must be at most {ATTACHMENT_STEP_LIMIT} (lower `stiffness` or `damping`, or widen `radius`)"
+                ),
+            ));
+        }
+        Ok(AttachmentSpec {
+            name,
+            body,
+            to,
+            ties,
+        })
     }
 
     fn obstacle(

@@ -14,6 +14,20 @@ pub(super) struct SceneFile {
     pub obstacle: Vec<Spanned<ObstacleSection>>,
     #[serde(default)]
     pub tool: Vec<Spanned<ToolSection>>,
+    #[serde(default)]
+    pub attachment: Vec<Spanned<AttachmentSection>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct AttachmentSection {
+    pub name: Option<Spanned<String>>,
+    pub body: Option<Spanned<String>>,
+    pub at: Option<Spanned<[f64; 3]>>,
+    pub radius: Option<Spanned<f64>>,
+    pub to: Option<Spanned<String>>,
+    pub stiffness: Option<Spanned<f64>>,
+    pub damping: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
