@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use palpa::daemon::values;
-use palpa::scene::{Scene, default_scene, load_scene};
+use palpa::scene::{BUILT_IN_SCENES, Scene, built_in_scene, default_scene, load_scene};
 use palpa::trace::{
     write_feedback_header, write_feedback_rows, write_trace_header, write_trace_rows,
 };
@@ -30,7 +30,8 @@ struct Cli {
 enum Command {
     /// Step a scene headless, as fast as possible, and optionally write a CSV trace.
     Run {
-        /// Scene file (TOML); the embedded default scene when omitted.
+        /// Scene file (TOML), or a built-in scene by name (`organ`, `laparoscopy`); the embedded default
+        /// scene when omitted.
         scene: Option<PathBuf>,
         /// Simulated duration (s).
         #[arg(long, default_value_t = 2.0, allow_hyphen_values = true, value_parser = values::non_negative)]
@@ -51,18 +52,23 @@ enum Command {
     },
     /// Validate a scene and print a summary: bodies, systems switched on, stability margin.
     Check {
-        /// Scene file (TOML); the embedded default scene when omitted.
+        /// Scene file (TOML), or a built-in scene by name (`organ`, `laparoscopy`); the embedded default
+        /// scene when omitted.
         scene: Option<PathBuf>,
     },
     /// Run the 1 kHz simulation daemon: tool poses in, feedback and mesh deltas out, over iceoryx2.
     #[cfg(feature = "ipc")]
     Serve(ServeArgs),
-    /// Start the daemon and a simulated device together (two processes) and palpate the default organ.
+    /// Start the daemon and simulated devices together (two processes) and palpate the default organ,
+    /// or drive every IPC tool of another scene (`--scene laparoscopy`: a probe and a grasper).
     #[cfg(feature = "ipc")]
     Demo {
         /// Seconds of palpation.
         #[arg(long, default_value_t = 6.0, allow_hyphen_values = true, value_parser = values::positive)]
         duration: f64,
+        /// Scene file (TOML), or a built-in scene by name (`organ`, `laparoscopy`).
+        #[arg(long, default_value = "organ")]
+        scene: String,
     },
 }
 
@@ -70,7 +76,8 @@ enum Command {
 #[cfg(feature = "ipc")]
 #[derive(clap::Args)]
 struct ServeArgs {
-    /// Scene file (TOML); the embedded default scene when omitted.
+    /// Scene file (TOML), or a built-in scene by name (`organ`, `laparoscopy`); the embedded default
+    /// scene when omitted.
     scene: Option<PathBuf>,
     /// Prefix of every service name, so rigs and tests never collide.
     #[arg(long, default_value = "palpa")]
@@ -156,12 +163,25 @@ fn main() -> Result<()> {
         #[cfg(feature = "ipc")]
         Command::Serve(args) => serve(args),
         #[cfg(feature = "ipc")]
-        Command::Demo { duration } => demo(duration),
+        Command::Demo { duration, scene } => demo(duration, &scene),
     }
 }
 
+/// The scene of a command: a file, else a built-in scene named in its place (`organ`,
+/// `laparoscopy`), else the default scene when none is given.
 fn scene_from(path: Option<&Path>) -> Result<Scene> {
     match path {
+        Some(p) if !p.exists() => match p.to_str().and_then(built_in_scene) {
+            Some(scene) => Ok(scene?),
+            None => {
+                let names: Vec<&str> = BUILT_IN_SCENES.iter().map(|(n, _)| *n).collect();
+                Err(anyhow::anyhow!(
+                    "{}: no such scene file, nor a built-in scene (built in: {})",
+                    p.display(),
+                    names.join(", ")
+                ))
+            }
+        },
         Some(p) => Ok(load_scene(p)?),
         None => Ok(default_scene()),
     }
@@ -533,8 +553,8 @@ fn serve(args: ServeArgs) -> Result<()> {
 }
 
 #[cfg(feature = "ipc")]
-fn demo(duration: f64) -> Result<()> {
-    use palpa::device::run::{DeviceOptions, run_device};
+fn demo(duration: f64, scene_name: &str) -> Result<()> {
+    use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
     use palpa::ipc::services::{create_node, stats_service};
     use std::io::{IsTerminal, Write};
     use std::process::{Command as Process, Stdio};
@@ -545,12 +565,28 @@ fn demo(duration: f64) -> Result<()> {
         bail!("--duration must be > 0");
     }
     let prefix = format!("palpa_demo_{}", std::process::id());
+    let scene = scene_from(Some(Path::new(scene_name)))?;
+    // The default organ keeps its hand-placed palpation; another scene gets a device per IPC tool.
+    let devices = if scene.source == palpa::scene::DEFAULT_SCENE {
+        vec![DeviceOptions::palpating_default_organ(&prefix, duration)]
+    } else {
+        devices_for_scene(&scene, &prefix, duration)
+    };
+    if devices.is_empty() {
+        bail!(
+            "{}: no tool takes its pose over IPC (`input = \"ipc\"`), so there is nothing for a device to drive",
+            scene.name
+        );
+    }
     let exe = std::env::current_exe().context("cannot find the palpa executable")?;
+    let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix}`) and a simulated Geomagic Touch"
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}`) and {} simulated Geomagic Touch ({})",
+        devices.len(),
+        tools.join(", ")
     );
     let daemon = Process::new(&exe)
-        .args(["serve", "--prefix", &prefix])
+        .args(["serve", "--prefix", &prefix, scene_name])
         .stdout(Stdio::piped())
         .spawn()
         .context("cannot start palpa serve")?;
@@ -558,16 +594,28 @@ fn demo(duration: f64) -> Result<()> {
     let stats = stats_service(&node, &prefix)
         .and_then(|f| Ok(f.subscriber_builder().create()?))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let options = DeviceOptions::palpating_default_organ(&prefix, duration);
+    let stop = Arc::new(AtomicBool::new(false));
+    // Every device but the first on a thread of its own; the first shows the status line.
+    let others: Vec<_> = devices[1..]
+        .iter()
+        .cloned()
+        .map(|options| {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                run_device(&options, stop, |_| {}).map_err(|e| e.to_string())
+            })
+        })
+        .collect();
     let terminal = std::io::stdout().is_terminal();
     let mut misses = 0u64;
-    let result = run_device(&options, Arc::new(AtomicBool::new(false)), |status| {
+    let first = run_device(&devices[0], stop.clone(), |status| {
         while let Ok(Some(sample)) = stats.receive() {
             misses = sample.payload().synchronicity_misses;
         }
         let line = format!(
-            "t {:4.1} s | force {:6.3} N | contacts {:2} | round trip p99 {:7.1} µs | synchronicity misses {}",
+            "t {:4.1} s | {} force {:6.3} N | contacts {:2} | round trip p99 {:7.1} µs | synchronicity misses {}",
             status.t,
+            devices[0].tool,
             status.force.norm(),
             status.contacts,
             status.latency_p99_us,
@@ -583,6 +631,14 @@ fn demo(duration: f64) -> Result<()> {
     if terminal {
         println!();
     }
+    let mut reports: Vec<Result<DeviceReport, String>> = vec![first.map_err(|e| e.to_string())];
+    for handle in others {
+        reports.push(
+            handle
+                .join()
+                .unwrap_or_else(|_| Err("the device thread panicked".into())),
+        );
+    }
     // SAFETY: kill(2) on our own child.
     unsafe {
         libc::kill(daemon.id() as i32, libc::SIGTERM);
@@ -590,17 +646,20 @@ fn demo(duration: f64) -> Result<()> {
     let output = daemon
         .wait_with_output()
         .context("waiting for the daemon")?;
-    let report = result.map_err(|e| anyhow::anyhow!("device: {e}"))?;
-    println!(
-        "palpa demo: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N",
-        report.poses_sent,
-        report.latencies_us.len(),
-        report.lost(),
-        report.latency_percentile(0.5),
-        report.latency_percentile(0.99),
-        report.latency_percentile(0.999),
-        report.max_force
-    );
+    for (options, report) in devices.iter().zip(reports) {
+        let report = report.map_err(|e| anyhow::anyhow!("device {}: {e}", options.tool))?;
+        println!(
+            "palpa demo: {}: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N",
+            options.tool,
+            report.poses_sent,
+            report.latencies_us.len(),
+            report.lost(),
+            report.latency_percentile(0.5),
+            report.latency_percentile(0.99),
+            report.latency_percentile(0.999),
+            report.max_force
+        );
+    }
     let daemon_out = String::from_utf8_lossy(&output.stdout);
     if let Some(last) = daemon_out.lines().last() {
         println!("{last}");

@@ -7,90 +7,6 @@ use palpa::Vec3;
 use palpa::scene::load_scene;
 use palpa::world::World;
 
-/// Generalised winding number of `p` with respect to a closed mesh: 1 inside, 0 outside.
-fn winding_number(p: &Vec3, positions: &[Vec3], triangles: &[[u32; 3]]) -> f64 {
-    let mut total = 0.0;
-    for t in triangles {
-        let [a, b, c] = t.map(|v| positions[v as usize] - p);
-        let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
-        let numerator = a.dot(&b.cross(&c));
-        let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
-        total += 2.0 * numerator.atan2(denominator);
-    }
-    total / (4.0 * std::f64::consts::PI)
-}
-
-/// Whether segment (p, q) crosses triangle (a, b, c) (Möller–Trumbore, touching excluded).
-fn segment_crosses_triangle(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(&e2);
-    let det = e1.dot(&h);
-    if det.abs() < 1e-18 {
-        return false;
-    }
-    let f = 1.0 / det;
-    let s = p - a;
-    let u = f * s.dot(&h);
-    let qv = s.cross(&e1);
-    let v = f * d.dot(&qv);
-    let t = f * e2.dot(&qv);
-    u > 0.0 && v > 0.0 && u + v < 1.0 && t > 0.0 && t < 1.0
-}
-
-/// Edges of each body that cross a triangle of another body.
-fn surfaces_crossing(world: &World) -> usize {
-    let mut count = 0;
-    for (i, a) in world.bodies.iter().enumerate() {
-        let x = &a.surface.position_in_world;
-        for (j, b) in world.bodies.iter().enumerate() {
-            if i == j {
-                continue;
-            }
-            let y = &b.surface.position_in_world;
-            for k in 0..a.edges.len() {
-                let (p, q) = (x[a.edges.a[k] as usize], x[a.edges.b[k] as usize]);
-                count += b
-                    .surface
-                    .triangles
-                    .iter()
-                    .filter(|t| {
-                        segment_crosses_triangle(
-                            &p,
-                            &q,
-                            &y[t[0] as usize],
-                            &y[t[1] as usize],
-                            &y[t[2] as usize],
-                        )
-                    })
-                    .count();
-            }
-        }
-    }
-    count
-}
-
-/// Nodes of each body inside another body.
-fn nodes_inside_others(world: &World) -> usize {
-    let mut count = 0;
-    for (i, a) in world.bodies.iter().enumerate() {
-        for (j, b) in world.bodies.iter().enumerate() {
-            if i == j {
-                continue;
-            }
-            count += a
-                .surface
-                .position_in_world
-                .iter()
-                .filter(|p| {
-                    winding_number(p, &b.surface.position_in_world, &b.surface.triangles) > 0.5
-                })
-                .count();
-        }
-    }
-    count
-}
-
 #[test]
 fn a_ball_dropped_on_an_organ_never_enters_it() {
     let scene = load_scene(&common::repo_root().join("scenes/two_organs.toml")).unwrap();
@@ -104,11 +20,15 @@ fn a_ball_dropped_on_an_organ_never_enters_it() {
         assert_eq!(world.counters.bodies.overflows, 0);
         if k % 5 == 0 {
             assert_eq!(
-                nodes_inside_others(&world),
+                common::nodes_inside_others(&world),
                 0,
                 "interpenetration at tick {k}"
             );
-            assert_eq!(surfaces_crossing(&world), 0, "surfaces cross at tick {k}");
+            assert_eq!(
+                common::surfaces_crossing(&world),
+                0,
+                "surfaces cross at tick {k}"
+            );
         }
         assert!(world.bodies.iter().all(|b| b.is_finite()));
     }
@@ -151,14 +71,18 @@ fn two_balls_thrown_at_each_other_at_1_m_per_s_do_not_pass_through() {
         world.step();
         collisions += world.counters.bodies.collisions;
         assert_eq!(
-            nodes_inside_others(&world),
+            common::nodes_inside_others(&world),
             0,
             "interpenetration at tick {k}"
         );
         // No surface passes through the other: no edge of one crosses a triangle of the other
         // (the interface of two soft balls squashed to 2.8 cm apart bulges and tilts, so the
         // nodes are not ordered along x, but the surfaces never cross).
-        assert_eq!(surfaces_crossing(&world), 0, "surfaces cross at tick {k}");
+        assert_eq!(
+            common::surfaces_crossing(&world),
+            0,
+            "surfaces cross at tick {k}"
+        );
     }
     assert!(collisions > 0);
     // They stopped each other: the surface centres no longer close in.
@@ -240,7 +164,7 @@ fn a_block_on_a_tilted_body_sticks_or_slides_with_coulomb_friction() {
             largest = largest.max(forces[1].norm());
             if tick % 50 == 0 {
                 assert_eq!(
-                    nodes_inside_others(&world),
+                    common::nodes_inside_others(&world),
                     0,
                     "θ = {theta_deg}°, tick {tick}"
                 );
@@ -353,11 +277,15 @@ fn an_organ_resting_on_another_and_pressed_stays_and_comes_to_rest() {
         }
         if k % 10 == 0 {
             assert_eq!(
-                nodes_inside_others(&world),
+                common::nodes_inside_others(&world),
                 0,
                 "interpenetration at tick {k}"
             );
-            assert_eq!(surfaces_crossing(&world), 0, "surfaces cross at tick {k}");
+            assert_eq!(
+                common::surfaces_crossing(&world),
+                0,
+                "surfaces cross at tick {k}"
+            );
         }
         if k == 3499 {
             resting_kinetic = world.bodies[1].kinetic_energy();

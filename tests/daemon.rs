@@ -416,6 +416,44 @@ fn demo_runs_daemon_and_device_together() {
 }
 
 #[test]
+fn demo_drives_both_tools_of_the_laparoscopy_scene() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(["demo", "--scene", "laparoscopy", "--duration", "2"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    // One simulated device per IPC tool, each answered by the daemon serving the built-in scene.
+    assert!(
+        text.contains("2 simulated Geomagic Touch (probe, grasper)"),
+        "{text}"
+    );
+    for tool in ["probe", "grasper"] {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("palpa demo: {tool}: 2000 poses sent")))
+            .unwrap_or_else(|| panic!("no report for {tool}: {text}"));
+        let answered: u64 = line
+            .split(", ")
+            .nth(1)
+            .and_then(|a| a.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{line}"));
+        assert!(answered > 1000, "{line}");
+    }
+    assert!(text.contains("palpa serve: stopped after"), "{text}");
+    // A scene name that is neither a file nor built in is refused, naming the built-in ones.
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(["demo", "--scene", "no_such_scene"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(text.contains("built in: organ, laparoscopy"), "{text}");
+}
+
+#[test]
 fn control_pauses_resumes_and_resets() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let p = prefix("control");

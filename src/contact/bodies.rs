@@ -124,8 +124,9 @@ pub struct BodyContactScratch {
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Vec<Aabb>,
     near: Vec<bool>,
-    /// The force the contact response put on each body this tick (N, world frame): its nodes'
-    /// momentum change over the step. Equal and opposite between two touching bodies.
+    /// The force the contact response put on each body this tick (N, world frame): the impulses on
+    /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
+    /// between two touching bodies.
     pub forces: Vec<Vec3>,
 }
 
@@ -808,6 +809,9 @@ fn solve(bodies: &mut [Body], contacts: &mut [Contact], forces: &mut [Vec3], dt:
                 continue;
             }
             for (r, w) in c.nodes() {
+                // The body takes its share of the impulse; a node a tool moves passes it on to the
+                // tool (its motion is the tool's).
+                forces[r.body] += impulse * (w / dt);
                 let inverse_mass = inverse_mass_of(bodies, r);
                 if inverse_mass == 0.0 {
                     continue;
@@ -818,7 +822,6 @@ fn solve(bodies: &mut [Body], contacts: &mut [Contact], forces: &mut [Vec3], dt:
                     s.next_position_in_world[r.node] += dv * dt;
                 }
                 s.velocity_in_world[r.node] += dv;
-                forces[r.body] += dv * (s.mass[r.node] / dt);
             }
         }
     }

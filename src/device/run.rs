@@ -86,6 +86,154 @@ impl DeviceOptions {
     }
 }
 
+/// One simulated device per tool of `scene` whose pose comes over IPC (`palpa demo --scene`), each
+/// a Geomagic Touch. A grasper works on the thinnest body (whose narrower horizontal side is the
+/// smallest: the easiest to take between its jaws), any other tool on the k-th body for the k-th
+/// IPC tool (in scene order, wrapping round), at the top of the body as placed. A grasper comes
+/// down over it with its jaws open across the body's narrower side, closes, lifts it 2 cm, holds,
+/// puts it down and opens, every 5 s; any other tool palpates it (presses of 4 mm once a second,
+/// from 3 cm above).
+pub fn devices_for_scene(
+    scene: &crate::scene::Scene,
+    prefix: &str,
+    duration: f64,
+) -> Vec<DeviceOptions> {
+    use crate::tool::{ToolInput, ToolShape};
+    let mut devices = Vec::new();
+    if scene.bodies.is_empty() {
+        return devices;
+    }
+    // Each body's box as placed (m, world).
+    let boxes: Vec<(Vec3, Vec3, Vec<Vec3>)> = scene
+        .bodies
+        .iter()
+        .map(|body| {
+            let placement = &body.placement;
+            let world: Vec<Vec3> = body
+                .mesh
+                .positions_in_body
+                .iter()
+                .map(|p| placement.position_in_world + placement.world_from_body * p)
+                .collect();
+            let (mut low, mut high) = (world[0], world[0]);
+            for x in &world {
+                low = low.inf(x);
+                high = high.sup(x);
+            }
+            (low, high, world)
+        })
+        .collect();
+    // The thinnest body (its narrower horizontal side the smallest): the one a grasper takes.
+    let thinnest = (0..boxes.len())
+        .min_by(|&a, &b| {
+            let narrow = |i: usize| {
+                let size = boxes[i].1 - boxes[i].0;
+                size.x.min(size.y)
+            };
+            narrow(a).total_cmp(&narrow(b))
+        })
+        .unwrap_or(0);
+    let ipc_tools = scene
+        .tools
+        .iter()
+        .filter(|t| matches!(t.input, ToolInput::Ipc));
+    for (k, tool) in ipc_tools.enumerate() {
+        let grasper = matches!(tool.shape, ToolShape::Grasper { .. });
+        let (low, high, world) = &boxes[if grasper { thinnest } else { k % boxes.len() }];
+        let (low, high) = (*low, *high);
+        // The top of the body above its centre: the highest node near the vertical through it (a
+        // node, so that a thin jaw meets tissue rather than a gap between nodes).
+        let centre = (low + high) * 0.5;
+        let reach = 0.25 * (high - low).xy().norm();
+        let at = world
+            .iter()
+            .filter(|x| (x.xy() - centre.xy()).norm() <= reach)
+            .fold(None::<Vec3>, |best, x| match best {
+                Some(b) if b.z >= x.z => Some(b),
+                _ => Some(*x),
+            })
+            .unwrap_or(Vec3::new(centre.x, centre.y, high.z));
+        let path = match tool.shape {
+            ToolShape::Grasper { jaw_length, .. } => {
+                // Pointing down, the jaws opening across the narrower horizontal side.
+                let size = high - low;
+                let down = if size.x > size.y {
+                    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        0.0,
+                        std::f64::consts::FRAC_1_SQRT_2,
+                        std::f64::consts::FRAC_1_SQRT_2,
+                        0.0,
+                    ))
+                } else {
+                    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        0.0, 1.0, 0.0, 0.0,
+                    ))
+                };
+                HandPath::Script(grasp_cycle(&at, centre.z, jaw_length, &down, duration))
+            }
+            _ => HandPath::BuiltIn {
+                motion: Motion::Palpate,
+                at,
+                seed: k as u64 + 1,
+            },
+        };
+        devices.push(DeviceOptions {
+            prefix: prefix.to_string(),
+            tool: tool.name.clone(),
+            spec: crate::device::model::PRESETS[0],
+            path,
+            duration,
+            lockstep: false,
+            keep_trace: false,
+        });
+    }
+    devices
+}
+
+/// Keyframes of a grasper taking a body whose top is at `top` and centre at height `middle`:
+/// hover 3 cm over the top with the jaws open (1.2 rad), come down until their tips, closed, are at
+/// the middle's height, close, lift 2 cm, hold, put down, open, go back up; a 5 s cycle repeated.
+fn grasp_cycle(
+    top: &Vec3,
+    middle: f64,
+    jaw_length: f64,
+    orientation: &nalgebra::UnitQuaternion<f64>,
+    duration: f64,
+) -> Vec<Keyframe> {
+    let open: f64 = 1.2;
+    let hinge = middle + jaw_length;
+    let above = top.z + jaw_length + 0.03;
+    let steps: [(f64, f64, f64); 8] = [
+        (0.0, above, open),
+        (1.0, hinge, open),
+        (1.5, hinge, 0.0),
+        (2.5, hinge + 0.02, 0.0),
+        (3.5, hinge + 0.02, 0.0),
+        (4.0, hinge, 0.0),
+        (4.3, hinge, open),
+        (5.0, above, open),
+    ];
+    let mut keys = Vec::new();
+    let mut start = 0.0;
+    while start <= duration {
+        for &(t, z, jaw) in &steps {
+            if start > 0.0 && t == 0.0 {
+                continue;
+            }
+            keys.push(Keyframe {
+                t: start + t,
+                pose: crate::tool::ToolPose {
+                    position_in_world: Vec3::new(top.x, top.y, z),
+                    world_from_tool: *orientation,
+                },
+                jaw,
+            });
+        }
+        start += 5.0;
+    }
+    keys
+}
+
 /// One row of the device trace.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceRow {
@@ -265,18 +413,23 @@ pub fn run_device(
         HandPath::Script(keys) => Some(ToolInput::Script(keys.clone())),
         HandPath::BuiltIn { .. } => None,
     };
-    let target_at = |t: f64| -> (Vec3, f64) {
+    // The hand's position and jaw opening at `t`; the handle's orientation (the device renders
+    // forces only, so the hand's orientation is sent as it is meant).
+    let pose_at = |t: f64| -> ((Vec3, f64), [f64; 4]) {
         match (&options.path, &script) {
             (_, Some(input)) => {
                 let (pose, jaw) = input.sample(t).unwrap_or_default();
-                (pose.position_in_world, jaw)
+                let q = pose.world_from_tool.quaternion();
+                ((pose.position_in_world, jaw), [q.w, q.i, q.j, q.k])
             }
-            (HandPath::BuiltIn { motion, at, seed }, None) => {
-                (built_in_target(*motion, at, t, *seed), 0.0)
-            }
+            (HandPath::BuiltIn { motion, at, seed }, None) => (
+                (built_in_target(*motion, at, t, *seed), 0.0),
+                [1.0, 0.0, 0.0, 0.0],
+            ),
             (HandPath::Script(_), None) => unreachable!("a script path always has its input"),
         }
     };
+    let target_at = |t: f64| -> (Vec3, f64) { pose_at(t).0 };
 
     let node = create_node()?;
     let publisher = pose_service(&node, &options.prefix, &options.tool)?
@@ -337,7 +490,7 @@ pub fn run_device(
             break;
         }
         let t = tick as f64 * dt;
-        let (target, jaw) = target_at(t);
+        let ((target, jaw), orientation) = pose_at(t);
         let (previous, _) = target_at(t - dt);
         handle.step(&target, &((target - previous) / dt), &tally.force, dt);
         let position = handle.measured_position();
@@ -354,7 +507,7 @@ pub fn run_device(
             seq,
             device_time_ns: monotonic_ns(),
             position: position.into(),
-            orientation: [1.0, 0.0, 0.0, 0.0],
+            orientation,
             jaw,
             buttons: 0,
             reserved: 0,

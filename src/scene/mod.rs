@@ -27,6 +27,23 @@ use schema::*;
 /// The scene a new user gets when they give none: an organ-like body dropped onto a table.
 pub const DEFAULT_SCENE: &str = include_str!("../../scenes/organ.toml");
 
+/// The laparoscopy scene (issue 15), compiled in so that `palpa demo --scene laparoscopy` runs
+/// anywhere.
+pub const LAPAROSCOPY_SCENE: &str = include_str!("../../scenes/laparoscopy.toml");
+
+/// Scenes compiled in, by the name the commands accept in place of a file: `organ` (the default
+/// scene) and `laparoscopy`.
+pub const BUILT_IN_SCENES: [(&str, &str); 2] =
+    [("organ", DEFAULT_SCENE), ("laparoscopy", LAPAROSCOPY_SCENE)];
+
+/// The built-in scene of that name, parsed (`None` when there is none).
+pub fn built_in_scene(name: &str) -> Option<Result<Scene, SceneError>> {
+    BUILT_IN_SCENES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(n, text)| parse_scene(text, &format!("<{n} scene>"), Path::new(".")))
+}
+
 /// Most vertices the meshes of one scene may have together: far past what can be stepped in 1 ms,
 /// and a bound on the memory a short scene file can ask for (a few lines of bodies with 7
 /// subdivisions each would otherwise allocate without limit).

@@ -280,3 +280,93 @@ pub fn fitted_acceleration(times: &[f64], s: &[f64]) -> f64 {
     }
     (ata.try_inverse().unwrap() * atb)[2]
 }
+
+/// Generalised winding number of `p` with respect to a closed mesh: 1 inside, 0 outside.
+pub fn winding_number(p: &palpa::Vec3, positions: &[palpa::Vec3], triangles: &[[u32; 3]]) -> f64 {
+    let mut total = 0.0;
+    for t in triangles {
+        let [a, b, c] = t.map(|v| positions[v as usize] - p);
+        let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+        let numerator = a.dot(&b.cross(&c));
+        let denominator = la * lb * lc + a.dot(&b) * lc + b.dot(&c) * la + c.dot(&a) * lb;
+        total += 2.0 * numerator.atan2(denominator);
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// Whether segment (p, q) crosses triangle (a, b, c) (Möller–Trumbore, touching excluded).
+pub fn segment_crosses_triangle(
+    p: &palpa::Vec3,
+    q: &palpa::Vec3,
+    a: &palpa::Vec3,
+    b: &palpa::Vec3,
+    c: &palpa::Vec3,
+) -> bool {
+    let d = q - p;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(&e2);
+    let det = e1.dot(&h);
+    if det.abs() < 1e-18 {
+        return false;
+    }
+    let f = 1.0 / det;
+    let s = p - a;
+    let u = f * s.dot(&h);
+    let qv = s.cross(&e1);
+    let v = f * d.dot(&qv);
+    let t = f * e2.dot(&qv);
+    u > 0.0 && v > 0.0 && u + v < 1.0 && t > 0.0 && t < 1.0
+}
+
+/// Edges of each body that cross a triangle of another body.
+pub fn surfaces_crossing(world: &palpa::world::World) -> usize {
+    let mut count = 0;
+    for (i, a) in world.bodies.iter().enumerate() {
+        let x = &a.surface.position_in_world;
+        for (j, b) in world.bodies.iter().enumerate() {
+            if i == j {
+                continue;
+            }
+            let y = &b.surface.position_in_world;
+            for k in 0..a.edges.len() {
+                let (p, q) = (x[a.edges.a[k] as usize], x[a.edges.b[k] as usize]);
+                count += b
+                    .surface
+                    .triangles
+                    .iter()
+                    .filter(|t| {
+                        segment_crosses_triangle(
+                            &p,
+                            &q,
+                            &y[t[0] as usize],
+                            &y[t[1] as usize],
+                            &y[t[2] as usize],
+                        )
+                    })
+                    .count();
+            }
+        }
+    }
+    count
+}
+
+/// Nodes of each body inside another body.
+pub fn nodes_inside_others(world: &palpa::world::World) -> usize {
+    let mut count = 0;
+    for (i, a) in world.bodies.iter().enumerate() {
+        for (j, b) in world.bodies.iter().enumerate() {
+            if i == j {
+                continue;
+            }
+            count += a
+                .surface
+                .position_in_world
+                .iter()
+                .filter(|p| {
+                    winding_number(p, &b.surface.position_in_world, &b.surface.triangles) > 0.5
+                })
+                .count();
+        }
+    }
+    count
+}

@@ -1,0 +1,117 @@
+//! The laparoscopy scene (`scenes/laparoscopy.toml`, built in as `laparoscopy`): its organs settle
+//! on their ligaments without entering each other, and the two tools the demo drives work in it —
+//! the probe presses the uterus (through the bowel in the way), the grasper takes a Fallopian tube,
+//! lifts it, puts it down and lets go.
+
+mod common;
+
+use palpa::Vec3;
+use palpa::device::run::{HandPath, built_in_target, devices_for_scene};
+use palpa::tool::{Keyframe, ToolInput, ToolPose};
+use palpa::world::World;
+
+#[test]
+fn the_built_in_scene_is_the_shipped_file() {
+    let built_in = palpa::scene::built_in_scene("laparoscopy")
+        .expect("a built-in laparoscopy scene")
+        .unwrap();
+    let file =
+        std::fs::read_to_string(common::repo_root().join("scenes/laparoscopy.toml")).unwrap();
+    assert_eq!(built_in.source, file);
+    let names: Vec<&str> = built_in.bodies.iter().map(|b| b.name.as_str()).collect();
+    for organ in [
+        "uterus",
+        "ovary_left",
+        "ovary_right",
+        "tube_left",
+        "tube_right",
+        "bowel_1",
+    ] {
+        assert!(names.contains(&organ), "{names:?}");
+    }
+    assert!(built_in.attachments.len() >= 8);
+    let tools: Vec<(&str, bool)> = built_in
+        .tools
+        .iter()
+        .map(|t| (t.name.as_str(), matches!(t.input, ToolInput::Ipc)))
+        .collect();
+    assert_eq!(tools, [("probe", true), ("grasper", true)]);
+}
+
+#[test]
+fn organs_settle_and_the_demo_tools_press_and_grasp_in_the_laparoscopy_scene() {
+    let mut scene = palpa::scene::built_in_scene("laparoscopy")
+        .unwrap()
+        .unwrap();
+    let seconds = 6.0;
+    // The devices `palpa demo --scene laparoscopy` runs, as scripts (their hands' paths).
+    let devices = devices_for_scene(&scene, "test", seconds);
+    assert_eq!(devices.len(), 2);
+    for (tool, device) in scene.tools.iter_mut().zip(&devices) {
+        assert_eq!(tool.name, device.tool);
+        tool.input = ToolInput::Script(match &device.path {
+            HandPath::Script(keys) => keys.clone(),
+            HandPath::BuiltIn { motion, at, seed } => (0..=(seconds * 100.0) as usize)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    Keyframe {
+                        t,
+                        pose: ToolPose {
+                            position_in_world: built_in_target(*motion, at, t, *seed),
+                            ..ToolPose::default()
+                        },
+                        jaw: 0.0,
+                    }
+                })
+                .collect(),
+        });
+    }
+    let tube = scene
+        .bodies
+        .iter()
+        .position(|b| b.name == "tube_left")
+        .unwrap();
+    let mut world = World::from_scene(&scene);
+    let tube_start = world.bodies[tube].surface_centre_of_mass();
+    let (mut probe_force, mut grasped, mut lift): (f64, u32, f64) = (0.0, 0, 0.0);
+    let mut settled_kinetic = f64::NAN;
+    let mut worst_sum: f64 = 0.0;
+    for tick in 1..=(seconds * 1000.0) as u64 {
+        world.step();
+        let forces = world.body_contact_forces();
+        let sum = forces.iter().fold(Vec3::zeros(), |s, f| s + f);
+        worst_sum = worst_sum.max(sum.norm());
+        probe_force = probe_force.max(world.tools[0].feedback.force_in_world.norm());
+        let held = world.tools[1].feedback.grasped;
+        grasped = grasped.max(held);
+        if held > 0 {
+            lift = lift.max(world.bodies[tube].surface_centre_of_mass().z - tube_start.z);
+        }
+        if tick == 700 {
+            // Before either tool arrives: everything has settled on its ligaments.
+            settled_kinetic = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
+        }
+        if tick % 500 == 0 {
+            assert_eq!(common::nodes_inside_others(&world), 0, "tick {tick}");
+            assert_eq!(common::surfaces_crossing(&world), 0, "tick {tick}");
+        }
+    }
+    let guard_events: u64 = world.guards.iter().map(|g| g.events).sum();
+    println!(
+        "settled kinetic energy at 0.7 s {settled_kinetic:.2e} J; probe force up to {probe_force:.3} N; grasper held {grasped} nodes and lifted the tube {:.1} mm; contact forces sum to {worst_sum:.1e} N at worst; guard events {guard_events}",
+        lift * 1e3
+    );
+    assert!(settled_kinetic < 1e-5, "{settled_kinetic}");
+    assert!(probe_force > 0.05, "{probe_force}");
+    assert!(grasped >= 2, "{grasped}");
+    assert!(lift > 0.01, "{lift}");
+    assert!(worst_sum < 1e-9, "{worst_sum}");
+    assert_eq!(guard_events, 0);
+    // Put down and let go: the tube lies where it started (within its own radius).
+    let tube_end = world.bodies[tube].surface_centre_of_mass();
+    assert!(
+        (tube_end - tube_start).norm() < 0.004,
+        "{tube_start:?} -> {tube_end:?}"
+    );
+    assert_eq!(world.tools[1].feedback.grasped, 0);
+}
