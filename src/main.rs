@@ -69,6 +69,9 @@ enum Command {
         /// Scene file (TOML), or a built-in scene by name (`organ`, `laparoscopy`).
         #[arg(long, default_value = "organ")]
         scene: String,
+        /// Run the daemon with `--rt` (SCHED_FIFO, locked memory, a pinned core).
+        #[arg(long)]
+        rt: bool,
     },
 }
 
@@ -163,7 +166,11 @@ fn main() -> Result<()> {
         #[cfg(feature = "ipc")]
         Command::Serve(args) => serve(args),
         #[cfg(feature = "ipc")]
-        Command::Demo { duration, scene } => demo(duration, &scene),
+        Command::Demo {
+            duration,
+            scene,
+            rt,
+        } => demo(duration, &scene, rt),
     }
 }
 
@@ -553,7 +560,7 @@ fn serve(args: ServeArgs) -> Result<()> {
 }
 
 #[cfg(feature = "ipc")]
-fn demo(duration: f64, scene_name: &str) -> Result<()> {
+fn demo(duration: f64, scene_name: &str, rt: bool) -> Result<()> {
     use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
     use palpa::ipc::services::{create_node, stats_service};
     use std::io::{IsTerminal, Write};
@@ -581,12 +588,17 @@ fn demo(duration: f64, scene_name: &str) -> Result<()> {
     let exe = std::env::current_exe().context("cannot find the palpa executable")?;
     let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}`) and {} simulated Geomagic Touch ({})",
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}`) and {} simulated Geomagic Touch ({})",
+        if rt { " --rt" } else { "" },
         devices.len(),
         tools.join(", ")
     );
+    let mut serve_args = vec!["serve", "--prefix", &prefix, scene_name];
+    if rt {
+        serve_args.push("--rt");
+    }
     let daemon = Process::new(&exe)
-        .args(["serve", "--prefix", &prefix, scene_name])
+        .args(&serve_args)
         .stdout(Stdio::piped())
         .spawn()
         .context("cannot start palpa serve")?;

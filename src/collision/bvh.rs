@@ -36,6 +36,22 @@ pub struct TriangleBvh {
     centroids: Vec<Vec3>,
     stack: Vec<(u32, u32)>,
     built_version: u64,
+    /// The features each triangle owns (see [`TriangleBvh::owned`]), from the last rebuild.
+    owned: Vec<u8>,
+    /// Scratch of the ownership pass: each side as (smaller node, larger node, 3 × triangle + side).
+    side_keys: Vec<(u32, u32, u32)>,
+    /// Scratch of the ownership pass: whether a node was met yet.
+    node_seen: Vec<bool>,
+}
+
+/// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
+pub const fn owns_vertex(k: usize) -> u8 {
+    1 << k
+}
+
+/// [`TriangleBvh::owned`] bit of the triangle's side `k`, from corner `k` to corner `(k + 1) % 3`.
+pub const fn owns_side(k: usize) -> u8 {
+    8 << k
 }
 
 impl TriangleBvh {
@@ -56,6 +72,9 @@ impl TriangleBvh {
             centroids: Vec::with_capacity(triangles),
             stack: Vec::with_capacity(256),
             built_version: 0,
+            owned: Vec::with_capacity(triangles),
+            side_keys: Vec::with_capacity(3 * triangles),
+            node_seen: Vec::with_capacity(3 * triangles + 3),
         }
     }
 
@@ -81,6 +100,50 @@ impl TriangleBvh {
         self.triangle_boxes.clear();
         self.triangle_boxes.resize(triangles.len(), Aabb::empty());
         self.refit(triangles, positions, positions, 0.0);
+        self.assign_features(triangles);
+    }
+
+    /// Gives every node and every side of the mesh to one triangle (a node to the first triangle
+    /// that has it, a side to the first of the one or two triangles that share it), so that a
+    /// search over triangle pairs tests each vertex–face and edge–edge pair once. Exact for such a
+    /// search: a node's (side's) swept box lies inside the box of every triangle that has it, so
+    /// whenever it meets another triangle's box, so does its owner's.
+    fn assign_features(&mut self, triangles: &[[u32; 3]]) {
+        self.owned.clear();
+        self.owned.resize(triangles.len(), 0);
+        let nodes = triangles
+            .iter()
+            .flat_map(|t| t.iter())
+            .max()
+            .map_or(0, |&m| m as usize + 1);
+        self.node_seen.clear();
+        self.node_seen.resize(nodes, false);
+        self.side_keys.clear();
+        for (i, t) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                let v = t[k] as usize;
+                if !self.node_seen[v] {
+                    self.node_seen[v] = true;
+                    self.owned[i] |= owns_vertex(k);
+                }
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                self.side_keys
+                    .push((a.min(b), a.max(b), 3 * i as u32 + k as u32));
+            }
+        }
+        self.side_keys.sort_unstable();
+        let mut previous = None;
+        for &(a, b, at) in &self.side_keys {
+            if previous != Some((a, b)) {
+                self.owned[at as usize / 3] |= owns_side(at as usize % 3);
+                previous = Some((a, b));
+            }
+        }
+    }
+
+    /// The features triangle `t` owns: bits [`owns_vertex`]`(k)` and [`owns_side`]`(k)`.
+    pub fn owned(&self, t: usize) -> u8 {
+        self.owned[t]
     }
 
     /// Whether the hierarchy was built for this topology (`version` is the body's topology version,
@@ -273,6 +336,36 @@ fn build_node(
 mod tests {
     use super::*;
     use crate::scene::mesh::icosphere;
+
+    #[test]
+    fn every_node_and_side_has_exactly_one_owner() {
+        let mesh = icosphere(0.05, 2);
+        // Also with a hole (a boundary: sides in one triangle only) and renumbered triangles.
+        let mut open = mesh.triangles.clone();
+        open.remove(7);
+        open.reverse();
+        for triangles in [mesh.triangles.clone(), open] {
+            let bvh = TriangleBvh::build(&triangles, &mesh.positions_in_body);
+            let mut vertex_owners = vec![0; mesh.positions_in_body.len()];
+            let mut side_owners = std::collections::BTreeMap::new();
+            for (i, t) in triangles.iter().enumerate() {
+                for k in 0..3 {
+                    if bvh.owned(i) & owns_vertex(k) != 0 {
+                        vertex_owners[t[k] as usize] += 1;
+                    }
+                    let key = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                    let count = side_owners.entry(key).or_insert(0);
+                    if bvh.owned(i) & owns_side(k) != 0 {
+                        *count += 1;
+                    }
+                }
+            }
+            assert!(vertex_owners.iter().all(|&c| c == 1), "{vertex_owners:?}");
+            assert!(side_owners.values().all(|&c| c == 1));
+            // Taking a triangle out leaves its sides in its neighbours: 480 sides either way.
+            assert_eq!(side_owners.len(), 480);
+        }
+    }
 
     #[test]
     fn bvh_pairs_match_brute_force() {

@@ -19,7 +19,7 @@
 
 use crate::Vec3;
 use crate::body::Body;
-use crate::collision::bvh::TriangleBvh;
+use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::tool::{
     Aabb, closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
@@ -319,9 +319,18 @@ pub fn resolve_body_collisions(
                         body: j,
                         node: v as usize,
                     });
+                    // Each vertex and side through the one triangle that owns it: every
+                    // vertex–face and edge–edge pair is tested once.
+                    let (oa, ob) = (
+                        scratch.bvhs[i].owned(ta as usize),
+                        scratch.bvhs[j].owned(tb as usize),
+                    );
                     let overflow_freeze = freeze || !complete;
-                    for (vertices, face) in [(fa, fb), (fb, fa)] {
-                        for v in vertices {
+                    for (vertices, owned, face) in [(fa, oa, fb), (fb, ob, fa)] {
+                        for (c, v) in vertices.into_iter().enumerate() {
+                            if owned & owns_vertex(c) == 0 {
+                                continue;
+                            }
                             let nodes = [v, face[0], face[1], face[2]];
                             answered += test_primitive(
                                 bodies,
@@ -334,7 +343,13 @@ pub fn resolve_body_collisions(
                         }
                     }
                     for ea in 0..3 {
+                        if oa & owns_side(ea) == 0 {
+                            continue;
+                        }
                         for eb in 0..3 {
+                            if ob & owns_side(eb) == 0 {
+                                continue;
+                            }
                             let nodes = [fa[ea], fa[(ea + 1) % 3], fb[eb], fb[(eb + 1) % 3]];
                             answered += test_primitive(
                                 bodies,
@@ -591,8 +606,15 @@ pub fn respond_to_body_contacts(
                 );
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
                 for k in 0..scratch.found.len() {
-                    let t = bodies[j].surface.triangles[scratch.found[k] as usize];
+                    let found = scratch.found[k] as usize;
+                    let t = bodies[j].surface.triangles[found];
+                    let owned = scratch.bvhs[j].owned(found);
                     for side in 0..3 {
+                        // Each side once, through the triangle that owns it (whose box the query
+                        // meets whenever it meets the side's).
+                        if owned & owns_side(side) == 0 {
+                            continue;
+                        }
                         let b = sorted([
                             NodeRef {
                                 body: j,

@@ -12,6 +12,9 @@
 //! * `cut`: a 10 cm incision drawn in 1 s across a 2 562-node organ: tick distribution during the cut
 //!   against the same scene with the blade passing above the organ, the cost of one incision step,
 //!   and the cost of a transection (the tube of `scenes/transection.toml` cut through).
+//! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching and
+//!   stacked (2 and 4 organs of 162 and 642 nodes), and the laparoscopy scene's tick distribution
+//!   with the demo's two tools, per stage.
 
 #[path = "../common/plot.rs"]
 mod plot;
@@ -49,6 +52,9 @@ enum Cmd {
     /// Tick time while a grasper lifts a 2 562-node organ and while a grasper tears an organ,
     /// against the same scenes without the grasp or the tearing.
     Grasp(GraspArgs),
+    /// Body–body contact stage and whole tick against the number of bodies and nodes (apart,
+    /// touching, stacked), per stage; the laparoscopy scene's tick distribution with both tools.
+    Bodies(GraspArgs),
     /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
     /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
     #[command(hide = true)]
@@ -126,6 +132,7 @@ fn main() -> Result<()> {
         Cmd::Scaling(args) => scaling(args),
         Cmd::Cut(args) => cut(args),
         Cmd::Grasp(args) => grasp(args),
+        Cmd::Bodies(args) => bodies(args),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
@@ -841,6 +848,165 @@ fn scene_ticks(text: &str, name: &str, window: std::ops::Range<u64>) -> Result<V
         }
     }
     Ok(ticks)
+}
+
+/// `count` organs (ellipsoids 8 × 6 × 3 cm of `subdivisions`) on the table: `apart` in a row 4 cm
+/// from each other, `touching` side by side in a row (0.5 mm apart, within the contact skin), or
+/// `stacked` one on another.
+fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
+    let mut text = String::from(
+        "[world]\nair_viscosity = 1.0\n\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
+    );
+    for k in 0..count {
+        let (x, z) = match layout {
+            "apart" => (k as f64 * 0.12, 0.0155),
+            "touching" => (k as f64 * 0.0805, 0.0155),
+            _ => (0.0, 0.0155 + k as f64 * 0.0305),
+        };
+        text += &format!(
+            "\n[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = {subdivisions} }} }}\nposition = [{x}, 0.0, {z}]\nsurface_mass = {}\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
+            0.1 * 4f64.powi(subdivisions as i32 - 2)
+        );
+    }
+    text
+}
+
+fn bodies(args: GraspArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let reps = if args.quick { 1 } else { 3 };
+    let levels: &[u32] = if args.quick { &[2] } else { &[2, 3] };
+    let counts: &[usize] = if args.quick { &[2] } else { &[2, 4] };
+    let layouts = ["apart", "touching", "stacked"];
+    let mut cases = Vec::new();
+    for &level in levels {
+        for &count in counts {
+            for layout in layouts {
+                cases.push((level, count, layout));
+            }
+        }
+    }
+    let mut progress = Progress::new("bodies", cases.len() * reps + reps);
+    let command = format!(
+        "palpa-bench bodies{} --out {}",
+        if args.quick { " --quick" } else { "" },
+        args.out.display()
+    );
+    let mut md = format!(
+        "# palpa-bench bodies\n\n`{command}` — {} — {}\n\n\
+         Organs (ellipsoids 8 × 6 × 3 cm) on a table, `apart` (4 cm gaps), `touching` (side by side, \
+         0.5 mm apart: within the contact skin) or `stacked` (each resting on the one below); 1.5 s to \
+         settle, then 1 s measured with `World::step_profiled`, {reps} run(s) each. *body contact*: \
+         the body–body stage (response and collision net) per tick; *tick*: the whole tick.\n\n\
+         | nodes per organ | organs | layout | body contact (µs) | tick (µs) | contacts per tick | ratio to apart |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+        today(),
+        machine()
+    );
+    let mut rows = Vec::new();
+    let mut apart_tick = 0.0;
+    for &(level, count, layout) in &cases {
+        let text = bodies_scene(count, level, layout);
+        let scene = palpa::scene::parse_scene(&text, layout, Path::new("."))
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let (mut stage, mut tick, mut contacts, mut nodes) = (0.0, 0.0, 0.0, 0);
+        for _ in 0..reps {
+            let mut world = World::from_scene(&scene);
+            nodes = world.bodies[0].node_count();
+            for _ in 0..1500 {
+                world.step();
+            }
+            let mut profile = StepProfile::default();
+            let mut seen = 0u64;
+            let started = Instant::now();
+            for _ in 0..1000 {
+                world.step_profiled(&mut profile);
+                seen += u64::from(world.counters.bodies.contacts);
+            }
+            tick += started.elapsed().as_secs_f64() * 1e6 / 1000.0 / reps as f64;
+            stage += profile.mean(Stage::BodyContact) * 1e6 / reps as f64;
+            contacts += seen as f64 / 1000.0 / reps as f64;
+            progress.step(layout);
+        }
+        if layout == "apart" {
+            apart_tick = tick;
+        }
+        md += &format!(
+            "| {nodes} | {count} | {layout} | {stage:.1} | {tick:.1} | {contacts:.0} | {:.2} |\n",
+            tick / apart_tick
+        );
+        rows.push(json!({
+            "nodes_per_body": nodes, "bodies": count, "layout": layout,
+            "body_contact_us": stage, "tick_us": tick, "contacts_per_tick": contacts,
+            "ratio_to_apart": tick / apart_tick,
+        }));
+    }
+    // The laparoscopy scene with the demo's two devices as scripts: the tick distribution over 6 s.
+    let mut scene = palpa::scene::built_in_scene("laparoscopy")
+        .expect("built in")
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let seconds = 6.0;
+    let devices = palpa::device::run::devices_for_scene(&scene, "bench", seconds);
+    for (tool, device) in scene.tools.iter_mut().zip(&devices) {
+        tool.input = palpa::tool::ToolInput::Script(match &device.path {
+            palpa::device::run::HandPath::Script(keys) => keys.clone(),
+            palpa::device::run::HandPath::BuiltIn { motion, at, seed } => (0..=600)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    palpa::tool::Keyframe {
+                        t,
+                        pose: palpa::tool::ToolPose {
+                            position_in_world: palpa::device::run::built_in_target(
+                                *motion, at, t, *seed,
+                            ),
+                            ..Default::default()
+                        },
+                        jaw: 0.0,
+                    }
+                })
+                .collect(),
+        });
+    }
+    let mut ticks = Vec::new();
+    let mut profile = StepProfile::default();
+    for _ in 0..reps {
+        let mut world = World::from_scene(&scene);
+        for tick in 0..(seconds * 1000.0) as u64 {
+            let start = Instant::now();
+            world.step_profiled(&mut profile);
+            if tick >= 500 {
+                ticks.push(start.elapsed().as_secs_f64() * 1e6);
+            }
+        }
+        progress.step("laparoscopy");
+    }
+    let spread = spread_of(ticks);
+    md += &format!(
+        "\n`scenes/laparoscopy.toml` ({} bodies, the demo's probe palpating and grasper lifting, as scripts), \
+         ticks 500–6 000, {reps} run(s) pooled:\n\n\
+         | scene | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+        scene.bodies.len()
+    );
+    md += &spread_row("laparoscopy", &spread);
+    md += "\nMean per stage (µs):\n\n| stage | µs |\n| --- | --- |\n";
+    let mut stages = serde_json::Map::new();
+    for stage in Stage::ALL {
+        let us = profile.mean(stage) * 1e6;
+        md += &format!("| {} | {us:.1} |\n", stage.name());
+        stages.insert(stage.name().into(), json!(us));
+    }
+    let result = json!({
+        "command": command, "date": today(), "machine": machine(), "repetitions": reps,
+        "layouts": rows, "laparoscopy": spread, "laparoscopy_stages_us": stages,
+    });
+    std::fs::write(
+        args.out.join("bodies.json"),
+        serde_json::to_string_pretty(&result)?,
+    )?;
+    std::fs::write(args.out.join("bodies.md"), &md)?;
+    print!("{md}");
+    Ok(())
 }
 
 fn grasp(args: GraspArgs) -> Result<()> {
