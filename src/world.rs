@@ -1074,7 +1074,13 @@ impl World {
             .zip(&self.cutters)
             .enumerate()
         {
-            guard.add_work(tool_work + self.attachments.work_on(b));
+            // Work from outside the body: tools, ligaments and the other bodies' contact.
+            let contact_work = self
+                .body_contact
+                .as_ref()
+                .and_then(|c| c.work.get(b).copied())
+                .unwrap_or(0.0);
+            guard.add_work(tool_work + self.attachments.work_on(b) + contact_work);
             let refined_now = refinement
                 .as_ref()
                 .is_some_and(|r| r.changed_at == self.tick + 1)

@@ -128,6 +128,10 @@ pub struct BodyContactScratch {
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
     pub forces: Vec<Vec3>,
+    /// The work the contact response's impulses did on each body this tick, in absolute value (J):
+    /// energy the body may gain from the others (a stack's weight compressing the organ below),
+    /// which the divergence guard adds to its budget.
+    pub work: Vec<f64>,
 }
 
 impl BodyContactScratch {
@@ -159,6 +163,7 @@ impl BodyContactScratch {
             bounds: Vec::with_capacity(count),
             near: Vec::with_capacity(count),
             forces: vec![Vec3::zeros(); count],
+            work: vec![0.0; count],
         }
     }
 }
@@ -525,6 +530,8 @@ pub fn respond_to_body_contacts(
     let mut counters = BodyContactCounters::default();
     scratch.forces.clear();
     scratch.forces.resize(bodies.len(), Vec3::zeros());
+    scratch.work.clear();
+    scratch.work.resize(bodies.len(), 0.0);
     if bodies.len() < 2 {
         return counters;
     }
@@ -663,7 +670,7 @@ pub fn respond_to_body_contacts(
     solve(
         bodies,
         &mut scratch.contacts,
-        &mut scratch.forces,
+        (&mut scratch.forces, &mut scratch.work),
         dt,
         Solve::Displacement,
     );
@@ -675,7 +682,7 @@ pub fn respond_to_body_contacts(
     solve(
         bodies,
         &mut scratch.contacts,
-        &mut scratch.forces,
+        (&mut scratch.forces, &mut scratch.work),
         dt,
         Solve::Velocity,
     );
@@ -791,7 +798,13 @@ enum Solve {
 /// Sweeps over `contacts` in order with accumulated impulses (normal ≥ 0, tangential within the
 /// Coulomb cone): a contact may close its gap down to the rest distance over a step and no more,
 /// and does not slip where friction holds.
-fn solve(bodies: &mut [Body], contacts: &mut [Contact], forces: &mut [Vec3], dt: f64, what: Solve) {
+fn solve(
+    bodies: &mut [Body],
+    contacts: &mut [Contact],
+    (forces, work): (&mut [Vec3], &mut [f64]),
+    dt: f64,
+    what: Solve,
+) {
     for _ in 0..SOLVER_ITERATIONS {
         for c in contacts.iter_mut() {
             if c.compliance <= 0.0 {
@@ -830,22 +843,38 @@ fn solve(bodies: &mut [Body], contacts: &mut [Contact], forces: &mut [Vec3], dt:
             if impulse == Vec3::zeros() {
                 continue;
             }
-            for (r, w) in c.nodes() {
-                // The body takes its share of the impulse; a node a tool moves passes it on to the
-                // tool (its motion is the tool's).
-                forces[r.body] += impulse * (w / dt);
-                let inverse_mass = inverse_mass_of(bodies, r);
-                if inverse_mass == 0.0 {
-                    continue;
-                }
-                let dv = impulse * (w * inverse_mass);
-                let s = &mut bodies[r.body].surface;
-                if what == Solve::Displacement {
-                    s.next_position_in_world[r.node] += dv * dt;
-                }
-                s.velocity_in_world[r.node] += dv;
-            }
+            let c = *c;
+            apply_impulse(bodies, &c, &impulse, (&mut *forces, &mut *work), dt, what);
         }
+    }
+}
+
+/// Applies `impulse` to contact `c`'s side a and, opposite, to side b, with their weights: the end
+/// velocities change, and (a displacement solve) the end positions with them. The body takes its
+/// share of the impulse; a node a tool moves passes it on to the tool (its motion is the tool's).
+fn apply_impulse(
+    bodies: &mut [Body],
+    c: &Contact,
+    impulse: &Vec3,
+    (forces, work): (&mut [Vec3], &mut [f64]),
+    dt: f64,
+    what: Solve,
+) {
+    for (r, w) in c.nodes() {
+        forces[r.body] += impulse * (w / dt);
+        work[r.body] += (impulse * w)
+            .dot(&bodies[r.body].surface.velocity_in_world[r.node])
+            .abs();
+        let inverse_mass = inverse_mass_of(bodies, r);
+        if inverse_mass == 0.0 {
+            continue;
+        }
+        let dv = impulse * (w * inverse_mass);
+        let s = &mut bodies[r.body].surface;
+        if what == Solve::Displacement {
+            s.next_position_in_world[r.node] += dv * dt;
+        }
+        s.velocity_in_world[r.node] += dv;
     }
 }
 
