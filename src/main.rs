@@ -723,6 +723,17 @@ fn check(path: Option<&Path>) -> Result<()> {
             o.name, o.shape, o.friction, o.static_friction
         );
     }
+    for a in &scene.attachments {
+        let stiffness: f64 = a.ties.iter().map(|t| t.stiffness).sum();
+        let damping: f64 = a.ties.iter().map(|t| t.damping).sum();
+        println!(
+            "  attachment {}: {} nodes of {} tied to {}, {stiffness:.6} N/m, {damping:.6} N·s/m",
+            a.name,
+            a.ties.len(),
+            scene.bodies[a.body].name,
+            a.to.map_or("the world", |o| scene.bodies[o].name.as_str()),
+        );
+    }
     println!("  systems: {}", world.systems().names().join(", "));
     println!("  stability under the paper's scheme (semi-implicit Euler), per body:");
     let mut unstable = false;

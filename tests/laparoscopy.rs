@@ -6,8 +6,7 @@
 mod common;
 
 use palpa::Vec3;
-use palpa::device::run::{HandPath, built_in_target, devices_for_scene};
-use palpa::tool::{Keyframe, ToolInput, ToolPose};
+use palpa::tool::ToolInput;
 use palpa::world::World;
 
 #[test]
@@ -40,32 +39,9 @@ fn the_built_in_scene_is_the_shipped_file() {
 
 #[test]
 fn organs_settle_and_the_demo_tools_press_and_grasp_in_the_laparoscopy_scene() {
-    let mut scene = palpa::scene::built_in_scene("laparoscopy")
-        .unwrap()
-        .unwrap();
-    let seconds = 6.0;
     // The devices `palpa demo --scene laparoscopy` runs, as scripts (their hands' paths).
-    let devices = devices_for_scene(&scene, "test", seconds);
-    assert_eq!(devices.len(), 2);
-    for (tool, device) in scene.tools.iter_mut().zip(&devices) {
-        assert_eq!(tool.name, device.tool);
-        tool.input = ToolInput::Script(match &device.path {
-            HandPath::Script(keys) => keys.clone(),
-            HandPath::BuiltIn { motion, at, seed } => (0..=(seconds * 100.0) as usize)
-                .map(|i| {
-                    let t = i as f64 * 0.01;
-                    Keyframe {
-                        t,
-                        pose: ToolPose {
-                            position_in_world: built_in_target(*motion, at, t, *seed),
-                            ..ToolPose::default()
-                        },
-                        jaw: 0.0,
-                    }
-                })
-                .collect(),
-        });
-    }
+    let seconds = 6.0;
+    let scene = common::laparoscopy_with_demo_tools(seconds);
     let tube = scene
         .bodies
         .iter()

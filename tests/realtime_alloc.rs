@@ -92,6 +92,29 @@ fn a_step_allocates_nothing_after_warm_up() {
 }
 
 #[test]
+fn the_laparoscopy_scene_allocates_nothing_on_the_tick() {
+    // Seven bodies in contact, fourteen ligaments, a probe palpating and a grasper taking, lifting
+    // and letting go of a tube (the demo's devices as scripts).
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = common::laparoscopy_with_demo_tools(6.0);
+    let mut world = World::from_scene(&scene);
+    for _ in 0..500 {
+        world.step();
+    }
+    ALLOCATIONS.store(0, Ordering::SeqCst);
+    set_counting(true);
+    let mut grasped = 0;
+    for _ in 500..6000 {
+        world.step();
+        grasped = grasped.max(world.tools[1].feedback.grasped);
+    }
+    set_counting(false);
+    let count = ALLOCATIONS.load(Ordering::SeqCst);
+    assert!(grasped > 0, "the grasper took nothing");
+    assert_eq!(count, 0, "{count} allocations in 5 500 steps");
+}
+
+#[test]
 fn subdivision_and_coarsening_allocate_nothing_on_the_tick() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // probe_refine.toml: the probe touches at about 1.5 s, refines while it presses and strokes,

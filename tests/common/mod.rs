@@ -370,3 +370,35 @@ pub fn nodes_inside_others(world: &palpa::world::World) -> usize {
     }
     count
 }
+
+/// The built-in laparoscopy scene with its two IPC tools driven by the paths of the devices
+/// `palpa demo --scene laparoscopy` runs (as scripts, `seconds` long).
+pub fn laparoscopy_with_demo_tools(seconds: f64) -> Scene {
+    use palpa::device::run::{HandPath, built_in_target, devices_for_scene};
+    use palpa::tool::{Keyframe, ToolInput, ToolPose};
+    let mut scene = palpa::scene::built_in_scene("laparoscopy")
+        .unwrap()
+        .unwrap();
+    let devices = devices_for_scene(&scene, "test", seconds);
+    assert_eq!(devices.len(), 2);
+    for (tool, device) in scene.tools.iter_mut().zip(&devices) {
+        assert_eq!(tool.name, device.tool);
+        tool.input = ToolInput::Script(match &device.path {
+            HandPath::Script(keys) => keys.clone(),
+            HandPath::BuiltIn { motion, at, seed } => (0..=(seconds * 100.0) as usize)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    Keyframe {
+                        t,
+                        pose: ToolPose {
+                            position_in_world: built_in_target(*motion, at, t, *seed),
+                            ..ToolPose::default()
+                        },
+                        jaw: 0.0,
+                    }
+                })
+                .collect(),
+        });
+    }
+    scene
+}
