@@ -16,7 +16,7 @@ use palpa::scene::{default_scene, load_scene};
 use palpa::world::World;
 
 /// (name in the file, scene path or `None` for the embedded default, integrator override, ticks)
-const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 11] = [
+const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 12] = [
     ("default_organ", None, None, 1000),
     ("probe_press", Some("scenes/probe_press.toml"), None, 1000),
     ("probe_refine", Some("scenes/probe_refine.toml"), None, 1000),
@@ -48,6 +48,7 @@ const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 11] = [
     ("incision", Some("scenes/incision.toml"), None, 2500),
     ("transection", Some("scenes/transection.toml"), None, 1500),
     ("plastic", Some("scenes/plastic.toml"), None, 4000),
+    ("laparoscopy", Some("scenes/laparoscopy.toml"), None, 1000),
 ];
 
 struct Fnv(u64);
