@@ -14,17 +14,15 @@ use crate::contact::bodies::{
 };
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
-    capture_among, capture_broad_phase, face_broad_phase, face_contacts_among, grasp_nodes,
-    hold_contact_nodes, jaws_touch, push_out_of_tools, release_nodes,
+    capture_among, capture_broad_phase, grasp_nodes, hold_contact_nodes, jaws_touch,
+    push_out_of_tools, release_nodes,
 };
 use crate::dynamics::Integrator;
 use crate::dynamics::attachment::Attachments;
-use crate::dynamics::forces::accumulate_body_forces;
 use crate::dynamics::guard::{Guard, body_energy};
 use crate::dynamics::implicit::Implicit;
-use crate::dynamics::integrate::{
-    commit_positions, integrate_free_nodes_symplectic, integrate_nodes_symplectic,
-};
+use crate::dynamics::integrate::commit_positions;
+use crate::dynamics::kernel::{ForceKernel, NodePass};
 use crate::dynamics::multirate::Multirate;
 use crate::dynamics::plasticity;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
@@ -101,9 +99,6 @@ pub struct StepCounters {
     pub obstacle_contacts: usize,
     /// Nodes that joined a tool's contact zone this step.
     pub tool_captures: u32,
-    /// Triangles a tool touched between their corners this step (see
-    /// [`detect_face_contacts`](crate::contact::tool::detect_face_contacts)).
-    pub tool_face_contacts: u32,
     /// Nodes moved out of a tool by the final guard (two parts squeezing a node).
     pub tool_push_outs: u32,
     /// Body–body contact stage.
@@ -152,6 +147,8 @@ pub struct World {
     systems: Systems,
     body_contact: Option<BodyContactScratch>,
     solvers: Vec<BodySolver>,
+    /// The force stage's scratch (edge batches, accumulators) of each body.
+    kernels: Vec<ForceKernel>,
     /// The divergence guard of each body.
     pub guards: Vec<Guard>,
     /// Adaptive subdivision state of each body (`None` where the scene leaves it off).
@@ -179,6 +176,7 @@ struct Spare {
     origin: usize,
     body: Body,
     solver: BodySolver,
+    kernel: ForceKernel,
     refinement: Option<Refinement>,
     cutter: Option<Cutter>,
     broad: BroadScratch,
@@ -221,12 +219,10 @@ impl BodySolver {
     }
 }
 
-/// Candidates of the tool broad phase, per body (reserved for its node and triangle capacity).
+/// Candidates of the tool broad phase, per body (reserved for its node capacity).
 #[derive(Clone, Debug, Default)]
 struct BroadScratch {
-    outcodes: Vec<u8>,
     nodes: Vec<u32>,
-    triangles: Vec<u32>,
 }
 
 /// The stages of a step, as [`World::step_profiled`] times them.
@@ -234,17 +230,18 @@ struct BroadScratch {
 pub enum Stage {
     /// Tools moved to their pose, feedback and reactions reset.
     Tools,
-    /// Springs, links, gravity and air on every node and on the rigid component.
+    /// Springs, links, gravity and air on every node and on the rigid component, the body's
+    /// energy, and the integration of an explicit body's free nodes (one pass over the nodes).
     Forces,
     /// Contact response: held nodes stick, slide or let go; node–obstacle contact; the tool guard.
     Contact,
-    /// Free nodes integrated (symplectic, multi-rate or implicit).
+    /// Free nodes integrated by the solvers that do not do it in the force stage (multi-rate with
+    /// sub-stepped nodes, implicit).
     Integration,
-    /// Broad phase against the tools: node trajectories against each tool's swept box, triangles by
-    /// the corners' outcodes.
+    /// Broad phase against the tools: node trajectories against each tool's swept box.
     BroadPhase,
     /// Continuous detection against the tools of what the broad phase kept: node trajectories
-    /// (conservative advancement, the node joins the contact zone) and triangles between nodes.
+    /// (conservative advancement, the node joins the contact zone).
     ToolCcd,
     /// Adaptive subdivision and coarsening.
     Subdivision,
@@ -387,9 +384,6 @@ fn cutting_blade_mask(
 /// Rounds of contact and implicit re-solve per step (each pins the nodes the contact stage resolved).
 const CONTACT_ROUNDS: usize = 3;
 
-/// Ticks between energy checks of the divergence guard (the other checks run every tick).
-const ENERGY_CHECK_EVERY: u64 = 16;
-
 impl World {
     /// An empty world.
     pub fn new(params: WorldParams) -> Self {
@@ -404,6 +398,7 @@ impl World {
             systems: Systems::default(),
             body_contact: None,
             solvers: Vec::new(),
+            kernels: Vec::new(),
             guards: Vec::new(),
             refinements: Vec::new(),
             cutters: Vec::new(),
@@ -537,15 +532,14 @@ impl World {
             .iter()
             .map(|b| solver_for(b, world_integrator, dt))
             .collect();
+        self.kernels = self.bodies.iter().map(ForceKernel::new).collect();
         self.broad = self
             .bodies
             .iter()
             .map(|b| {
-                let (nodes, triangles) = b.mesh_capacity();
+                let (nodes, _) = b.mesh_capacity();
                 BroadScratch {
-                    outcodes: Vec::with_capacity(nodes),
                     nodes: Vec::with_capacity(nodes),
-                    triangles: Vec::with_capacity(triangles),
                 }
             })
             .collect();
@@ -554,6 +548,7 @@ impl World {
         let room = self.spares.len();
         self.bodies.reserve(room);
         self.solvers.reserve(room);
+        self.kernels.reserve(room);
         self.refinements.reserve(room);
         self.cutters.reserve(room);
         self.broad.reserve(room);
@@ -566,11 +561,12 @@ impl World {
             .zip(&self.solvers)
             .map(|(b, solver)| {
                 let mut guard = Guard::new(b, &gravity);
-                // A body stepped explicitly past its stability limit can gain energy within a few
-                // ticks without moving fast: its energy is watched every tick.
+                // A body stepped explicitly past its stability limit can gain energy within a tick
+                // without moving fast: the energy of the end of each step is checked. Every other
+                // body's is checked every tick from the force stage's measure, one tick behind.
                 if matches!(solver, BodySolver::Symplectic) {
                     let margin = symplectic_margin(b, dt);
-                    guard.energy_every_tick = margin.margin < 0.0 || margin.rigid_margin < 0.0;
+                    guard.energy_at_end = margin.margin < 0.0 || margin.rigid_margin < 0.0;
                 }
                 guard
             })
@@ -597,16 +593,15 @@ impl World {
                 shell.reserve_room();
                 let refinement = shell.params.subdivision.map(|s| Refinement::new(&shell, s));
                 let cutter = Some(Cutter::new(&shell, settings, tool_count));
-                let (nodes, triangles) = shell.mesh_capacity();
+                let (nodes, _) = shell.mesh_capacity();
                 self.spares.push(Some(Spare {
                     origin,
                     solver: solver_for(&shell, world_integrator, dt),
+                    kernel: ForceKernel::new(&shell),
                     refinement,
                     cutter,
                     broad: BroadScratch {
-                        outcodes: Vec::with_capacity(nodes),
                         nodes: Vec::with_capacity(nodes),
-                        triangles: Vec::with_capacity(triangles),
                     },
                     body: shell,
                 }));
@@ -680,12 +675,13 @@ impl World {
         cutter.transection_counts(&result);
         cutter.renumbered();
         self.solvers[b].topology_changed(body, dt);
+        self.kernels[b].invalidate();
         if let Some(refinement) = self.refinements[b].as_mut() {
             refinement.renumbered(body);
         }
         self.guards[b].rebase(body);
         counters.transections += 1;
-        let energy_every_tick = self.guards[b].energy_every_tick;
+        let energy_at_end = self.guards[b].energy_at_end;
         let gravity = self.params.gravity;
         for spare in taken.iter_mut() {
             let Some(mut spare) = spare.take() else {
@@ -707,9 +703,11 @@ impl World {
                 cutter.changed_at = tick;
             }
             let mut guard = Guard::new(&spare.body, &gravity);
-            guard.energy_every_tick = energy_every_tick;
+            guard.energy_at_end = energy_at_end;
             self.bodies.push(spare.body);
             self.solvers.push(spare.solver);
+            spare.kernel.invalidate();
+            self.kernels.push(spare.kernel);
             self.refinements.push(spare.refinement);
             self.cutters.push(spare.cutter);
             self.broad.push(spare.broad);
@@ -718,6 +716,22 @@ impl World {
             self.pieces_named.push(0);
         }
         self.systems.body_contact = self.bodies.len() >= 2 && self.body_contact.is_some();
+    }
+
+    /// Chooses the force stage's SIMD path (where the machine has one) or its scalar path for every
+    /// body; the result bits are the same either way.
+    pub fn set_simd(&mut self, simd: bool) {
+        for kernel in &mut self.kernels {
+            kernel.set_simd(simd);
+        }
+        for spare in self.spares.iter_mut().flatten() {
+            spare.kernel.set_simd(simd);
+        }
+    }
+
+    /// The force stage's scratch of body `b` (its edge batches).
+    pub fn force_kernel(&self, b: usize) -> Option<&ForceKernel> {
+        self.kernels.get(b)
     }
 
     /// The attachments (ligaments) and their forces of the last tick.
@@ -816,10 +830,11 @@ impl World {
             clock.enter(Stage::Forces);
             self.attachments.compute(&self.bodies, dt);
         }
-        for (b, ((((body, solver), refinement), broad), cutter)) in self
+        for (b, (((((body, solver), kernel), refinement), broad), cutter)) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
+            .zip(self.kernels.iter_mut())
             .zip(self.refinements.iter_mut())
             .zip(self.broad.iter_mut())
             .zip(self.cutters.iter_mut())
@@ -836,25 +851,41 @@ impl World {
                     cutting_blade_mask(cutter, body, &self.tools, &self.previous_force);
             }
             clock.enter(Stage::Forces);
-            accumulate_body_forces(body, &gravity);
+            kernel.edge_forces(body);
             if attached {
                 for (node, force) in self.attachments.forces_on(b) {
-                    body.surface.force_in_world[node] += force;
+                    kernel.add_external(node, &force);
                     if let BodySolver::Multirate(m) = solver {
                         m.add_external_force(node, &force);
                     }
                 }
             }
+            // An explicit body with every node at the step is integrated in the force stage's node
+            // pass (the held nodes are the contact stage's); the others by their solver.
+            let fused = match solver {
+                BodySolver::Symplectic => true,
+                BodySolver::Multirate(m) => m.fast.is_empty() && !m.rigid_substepped,
+                BodySolver::Implicit(_) => false,
+            };
+            let pass = match (fused, systems.tool_contact) {
+                (false, _) => NodePass::Forces,
+                (true, true) => NodePass::IntegrateFree,
+                (true, false) => NodePass::IntegrateAll,
+            };
+            kernel.node_pass(body, &gravity, dt, pass);
             clock.enter(Stage::Contact);
             if systems.tool_contact {
-                hold_contact_nodes(&mut body.surface, &mut self.tools, body.params.friction, dt);
+                hold_contact_nodes(
+                    &mut body.surface,
+                    &mut self.tools,
+                    body.params.friction,
+                    dt,
+                    fused,
+                );
             }
             clock.enter(Stage::Integration);
             match solver {
-                BodySolver::Symplectic if systems.tool_contact => {
-                    integrate_free_nodes_symplectic(&mut body.surface, dt)
-                }
-                BodySolver::Symplectic => integrate_nodes_symplectic(&mut body.surface, dt),
+                BodySolver::Symplectic => {}
                 BodySolver::Multirate(m) => {
                     counters.obstacle_contacts += m.integrate(
                         body,
@@ -862,6 +893,7 @@ impl World {
                         &gravity,
                         &self.obstacles,
                         &mut self.obstacle_reactions,
+                        fused,
                     )
                 }
                 BodySolver::Implicit(i) => i.integrate(body, dt),
@@ -895,21 +927,6 @@ impl World {
                         counters.refinements += inserted;
                         solver.topology_changed(body, dt);
                     }
-                }
-                for (tool_index, tool) in self.tools.iter().enumerate() {
-                    if cutting_blades & tool_bit(tool_index) != 0 {
-                        continue;
-                    }
-                    clock.enter(Stage::BroadPhase);
-                    face_broad_phase(
-                        &body.surface,
-                        tool,
-                        &mut broad.outcodes,
-                        &mut broad.triangles,
-                    );
-                    clock.enter(Stage::ToolCcd);
-                    counters.tool_face_contacts +=
-                        face_contacts_among(&body.surface, tool, &broad.triangles);
                 }
             }
             clock.enter(Stage::Contact);
@@ -1065,11 +1082,11 @@ impl World {
             .filter(|w| w.is_finite())
             .map(f64::abs)
             .sum();
-        let check_energy = (self.tick + 1) % ENERGY_CHECK_EVERY == 0;
-        for (b, (((body, guard), refinement), cutter)) in self
+        for (b, ((((body, guard), kernel), refinement), cutter)) in self
             .bodies
             .iter_mut()
             .zip(self.guards.iter_mut())
+            .zip(&self.kernels)
             .zip(&self.refinements)
             .zip(&self.cutters)
             .enumerate()
@@ -1087,14 +1104,21 @@ impl World {
                 || cutter
                     .as_ref()
                     .is_some_and(|c| c.changed_at == self.tick + 1);
-            let energy = (check_energy || refined_now || guard.energy_every_tick)
-                .then(|| body_energy(body, &gravity));
-            if refined_now && let Some(e) = energy {
-                // An insertion and its capture by the tool add energy from outside the model, like
-                // the tool's work: the budget takes it.
-                guard.raise_budget_to(e);
-            }
-            if guard.check(body, energy).is_some() {
+            guard.start(kernel.energy);
+            // The energy the force stage measured at the start of this tick (free of cost, one tick
+            // behind), or, when the topology changed this tick or the body needs it, the energy now.
+            let energy = if refined_now || guard.energy_at_end {
+                let e = body_energy(body, &gravity);
+                if refined_now {
+                    // An insertion and its capture by the tool add energy from outside the model,
+                    // like the tool's work: the budget takes it.
+                    guard.raise_budget_to(e);
+                }
+                e
+            } else {
+                kernel.energy
+            };
+            if guard.check(body, Some(energy)).is_some() {
                 counters.guard_events += 1;
                 // The restored shape may cross an obstacle the deformed one was resting on.
                 for x in &mut body.surface.position_in_world {

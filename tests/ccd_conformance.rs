@@ -202,7 +202,10 @@ fn binary_reports_one_json_line_for_a_file() {
             "false_positives",
             "file",
             "kind",
+            "max_ns",
+            "mean_ns",
             "ns_per_query",
+            "p999_ns",
             "positives",
             "queries"
         ]
@@ -218,6 +221,15 @@ fn binary_reports_one_json_line_for_a_file() {
     assert_eq!(json["false_positives"], false_positives);
     let ns = json["ns_per_query"].as_f64().expect("a number");
     assert!(ns > 0.0 && ns.is_finite(), "{ns}");
+    let (mean, p999, max) = (
+        json["mean_ns"].as_f64().expect("a number"),
+        json["p999_ns"].as_f64().expect("a number"),
+        json["max_ns"].as_f64().expect("a number"),
+    );
+    assert!(
+        0.0 < mean && mean <= max && 0.0 < p999 && p999 <= max && max.is_finite(),
+        "{mean} {p999} {max}"
+    );
 }
 
 /// A scratch folder of its own for each test, under the target directory.
@@ -263,16 +275,25 @@ fn binary_walks_folders_in_sorted_order() {
         .lines()
         .map(|l| serde_json::from_str(l).expect("JSON line"))
         .collect();
-    assert_eq!(lines.len(), 2, "{stdout}");
-    // edge-edge sorts before vertex-face; notes.txt is not read.
+    assert_eq!(lines.len(), 3, "{stdout}");
+    // edge-edge sorts before vertex-face; notes.txt is not read; then the line over both.
     assert_eq!(lines[0]["kind"], "edge-edge");
     assert_eq!(lines[0]["positives"], 0);
     assert_eq!(lines[0]["false_positives"], 0);
     assert_eq!(lines[1]["kind"], "vertex-face");
     assert_eq!(lines[1]["positives"], 1);
     assert_eq!(lines[1]["false_negatives"], 0);
-    for line in &lines {
+    for line in &lines[..2] {
         assert_eq!(line["queries"], 1);
+    }
+    assert_eq!(lines[2]["file"], "(all)");
+    assert_eq!(lines[2]["kind"], "all");
+    assert_eq!(lines[2]["queries"], 2);
+    assert_eq!(lines[2]["positives"], 1);
+    assert_eq!(lines[2]["false_positives"], 0);
+    let max = lines[2]["max_ns"].as_f64().expect("a number");
+    for line in &lines[..2] {
+        assert!(line["max_ns"].as_f64().expect("a number") <= max);
     }
 }
 

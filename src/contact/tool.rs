@@ -134,7 +134,13 @@ fn add_feedback(
 
 /// Step 1: releases, sticks or slides every node already in contact; writes the end position and
 /// velocity of the nodes still held, and their feedback. `friction` is the body's Coulomb coefficient.
-pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f64, dt: f64) {
+pub fn hold_contact_nodes(
+    surface: &mut Surface,
+    tools: &mut [Tool],
+    friction: f64,
+    dt: f64,
+    integrate_released: bool,
+) {
     for i in 0..surface.tool_contact.len() {
         let contact = surface.tool_contact[i];
         if contact.tool == NO_TOOL {
@@ -144,6 +150,9 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
         let part = contact.part as usize;
         if part >= tool.part_count {
             surface.tool_contact[i] = ToolContact::default();
+            if integrate_released {
+                integrate_node(surface, i, dt);
+            }
             continue;
         }
         let start = surface.position_in_world[i];
@@ -172,6 +181,9 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
         if normal_component > 0.0 {
             // The model pulls the node away from the tool: released, integrated as a free node.
             surface.tool_contact[i] = ToolContact::default();
+            if integrate_released {
+                integrate_node(surface, i, dt);
+            }
             continue;
         }
         let normal_force = -normal_component;
@@ -230,6 +242,14 @@ pub fn hold_contact_nodes(surface: &mut Surface, tools: &mut [Tool], friction: f
             sliding,
         );
     }
+}
+
+/// Semi-implicit Euler for node `i` (the operations of the force stage's node pass).
+fn integrate_node(surface: &mut Surface, i: usize, dt: f64) {
+    let velocity =
+        surface.velocity_in_world[i] + surface.force_in_world[i] * (dt * surface.inverse_mass[i]);
+    surface.velocity_in_world[i] = velocity;
+    surface.next_position_in_world[i] = surface.position_in_world[i] + velocity * dt;
 }
 
 /// The pose a fraction `s` of the way through the tick.

@@ -46,9 +46,12 @@ pub struct Guard {
     pub last_cause: Option<GuardCause>,
     /// The guard acted during the last step.
     pub acted: bool,
-    /// Check the energy every tick (set for a body stepped explicitly past its stability limit);
-    /// otherwise the caller checks it every few ticks.
-    pub energy_every_tick: bool,
+    /// Check the energy of the end of every step (set for a body stepped explicitly past its
+    /// stability limit, which can gain energy within a tick); otherwise the caller checks the energy
+    /// the force stage measured at the start of the step, one step behind.
+    pub energy_at_end: bool,
+    /// The budget was taken from the state the first step started from.
+    started: bool,
     size: f64,
     budget: f64,
     gravity: Vec3,
@@ -89,7 +92,8 @@ impl Guard {
             events: 0,
             last_cause: None,
             acted: false,
-            energy_every_tick: false,
+            energy_at_end: false,
+            started: false,
             size: (hi - lo).norm().max(MIN_SIZE),
             budget: body_energy(body, gravity),
             gravity: *gravity,
@@ -110,6 +114,15 @@ impl Guard {
     pub fn add_work(&mut self, work: f64) {
         if work.is_finite() {
             self.budget += work;
+        }
+    }
+
+    /// The energy of the state the first step starts from (J): the budget is at least that (the state
+    /// may have been set after the guard was made).
+    pub fn start(&mut self, energy: f64) {
+        if !self.started {
+            self.started = true;
+            self.raise_budget_to(energy);
         }
     }
 

@@ -6,6 +6,7 @@ pub mod forces;
 pub mod guard;
 pub mod implicit;
 pub mod integrate;
+pub mod kernel;
 pub mod multirate;
 pub mod plasticity;
 pub mod stability;

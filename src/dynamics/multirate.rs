@@ -308,7 +308,8 @@ impl Multirate {
     }
 
     /// Integrates the free nodes of `body` over `dt` (forces already accumulated): slow nodes in one
-    /// step, fast nodes in substeps. Allocates nothing.
+    /// step (unless `slow_nodes_integrated`: the force stage's node pass did it), fast nodes in
+    /// substeps. Allocates nothing.
     ///
     /// When the rigid component is sub-stepped, contact with the `obstacles` is resolved in the
     /// substeps too (a contact projected once per step would store ½ k (v Δt)² in the stiff links it
@@ -320,12 +321,17 @@ impl Multirate {
         gravity: &Vec3,
         obstacles: &[Obstacle],
         reactions: &mut [Vec3],
+        slow_nodes_integrated: bool,
     ) -> usize {
         if self.rigid_substepped {
             return self.integrate_with_rigid(body, dt, gravity, obstacles, reactions);
         }
         let s = &mut body.surface;
-        let n = s.mass.len();
+        let n = if slow_nodes_integrated {
+            0
+        } else {
+            s.mass.len()
+        };
         for i in 0..n {
             if self.local[i] != u32::MAX || s.tool_contact[i].tool != NO_TOOL {
                 continue;

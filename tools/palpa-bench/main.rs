@@ -15,9 +15,13 @@
 //! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching and
 //!   stacked (2 and 4 organs of 162 and 642 nodes), and the laparoscopy scene's tick distribution
 //!   with the demo's two tools, per stage.
+//! * `reference`: palpa's whole tick on a 10 242-node organ (no contact) against the plain reference
+//!   step ([`reference`]: array of structs, scalar `f64`) of the same system, in the same run, best
+//!   of three, after checking that both step the same system.
 
 #[path = "../common/plot.rs"]
 mod plot;
+mod reference;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
@@ -55,6 +59,9 @@ enum Cmd {
     /// Body–body contact stage and whole tick against the number of bodies and nodes (apart,
     /// touching, stacked), per stage; the laparoscopy scene's tick distribution with both tools.
     Bodies(GraspArgs),
+    /// palpa's tick against the plain reference step of the same model (array of structs, scalar
+    /// f64), same organ, same run.
+    Reference(ReferenceArgs),
     /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
     /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
     #[command(hide = true)]
@@ -111,6 +118,25 @@ struct GraspArgs {
 }
 
 #[derive(Args)]
+struct ReferenceArgs {
+    /// Output directory.
+    #[arg(long, default_value = "bench-out")]
+    out: PathBuf,
+    /// Icosphere subdivisions of the organ (5: 10 242 nodes).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=7))]
+    subdivisions: u32,
+    /// palpa's integrator (`symplectic`, `multirate`, `implicit`).
+    #[arg(long, default_value = "symplectic")]
+    integrator: String,
+    /// Steps per timed run (default 2 000; 200 with --quick).
+    #[arg(long, value_parser = palpa::daemon::values::count)]
+    steps: Option<u64>,
+    /// Fewer steps: a smoke test.
+    #[arg(long)]
+    quick: bool,
+}
+
+#[derive(Args)]
 struct CutArgs {
     /// Output directory.
     #[arg(long, default_value = "bench-out")]
@@ -133,6 +159,7 @@ fn main() -> Result<()> {
         Cmd::Cut(args) => cut(args),
         Cmd::Grasp(args) => grasp(args),
         Cmd::Bodies(args) => bodies(args),
+        Cmd::Reference(args) => reference_comparison(args),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
@@ -1256,6 +1283,126 @@ fn cut(args: CutArgs) -> Result<()> {
     }
     md += "\n![with the cut](cut_ticks.svg)\n![no cut](no_cut_ticks.svg)\n";
     std::fs::write(args.out.join("cut.md"), &md)?;
+    println!("{md}");
+    Ok(())
+}
+
+/// The organ of `palpa-bench reference`: an icosphere of radius 5 cm, its rigid component held, under
+/// gravity, with nothing to touch (surface mass growing with the node count, as in `scaling`, so that
+/// the explicit step stays stable at 1 ms).
+fn reference_world(subdivisions: u32, integrator: &str) -> Result<World> {
+    let nodes = 10 * 4u64.pow(subdivisions) + 2;
+    let surface_mass = 0.2 * nodes as f64 / 642.0;
+    let text = format!(
+        "[world]\nintegrator = \"{integrator}\"\n[[body]]\nname = \"organ\"\n\
+         mesh = {{ icosphere = {{ radius = 0.05, subdivisions = {subdivisions} }} }}\n\
+         position = [0.0, 0.0, 0.1]\nfixed = true\nsurface_mass = {surface_mass}\nrigid_mass = 1.0\n\
+         air_viscosity = 0.5\n"
+    );
+    let scene = palpa::scene::parse_scene(&text, "reference.toml", Path::new("."))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(World::from_scene(&scene))
+}
+
+fn reference_comparison(args: ReferenceArgs) -> Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let steps = args.steps.unwrap_or(if args.quick { 200 } else { 2000 });
+    // Both step the same system: after 200 steps from rest the nodes agree to round-off.
+    let mut world = reference_world(args.subdivisions, &args.integrator)?;
+    let gravity = world.params.gravity;
+    let dt = world.params.dt;
+    let mut plain = reference::Reference::from_body(&world.bodies[0], &gravity, dt);
+    for _ in 0..200 {
+        world.step();
+        plain.step();
+    }
+    let body = &world.bodies[0];
+    let nodes = body.node_count();
+    let (mut gap, mut sag) = (0.0f64, 0.0f64);
+    for i in 0..nodes {
+        gap = gap.max((body.surface.position_in_world[i] - plain.position(i)).norm());
+        sag = sag
+            .max((body.surface.position_in_world[i] - body.surface.homologue_in_world[i]).norm());
+    }
+    if gap.is_nan() || gap > 1e-9 * sag.max(1e-6) {
+        bail!(
+            "palpa and the reference disagree: nodes {gap:.3e} m apart after 200 steps (deflection {sag:.3e} m)"
+        );
+    }
+    println!(
+        "same system: {nodes} nodes, {} edges; after 200 steps the largest gap is {gap:.2e} m (deflection {sag:.2e} m)",
+        body.edges.len()
+    );
+    let mut best = [f64::INFINITY; 2];
+    let mut all = [Vec::new(), Vec::new()];
+    for _run in 0..3 {
+        let mut world = reference_world(args.subdivisions, &args.integrator)?;
+        for _ in 0..100 {
+            world.step();
+        }
+        let start = Instant::now();
+        for _ in 0..steps {
+            world.step();
+        }
+        let palpa_us = start.elapsed().as_secs_f64() * 1e6 / steps as f64;
+        let mut plain = reference::Reference::from_body(&world.bodies[0], &gravity, dt);
+        for _ in 0..100 {
+            plain.step();
+        }
+        let start = Instant::now();
+        for _ in 0..steps {
+            plain.step();
+        }
+        let plain_us = start.elapsed().as_secs_f64() * 1e6 / steps as f64;
+        std::hint::black_box(&plain.reaction);
+        for (k, us) in [palpa_us, plain_us].into_iter().enumerate() {
+            best[k] = best[k].min(us);
+            all[k].push(us);
+        }
+    }
+    let ratio = best[0] / best[1];
+    let result = json!({
+        "command": format!(
+            "palpa-bench reference --subdivisions {} --integrator {}{} --out {}",
+            args.subdivisions,
+            args.integrator,
+            if args.quick { " --quick" } else { "" },
+            args.out.display()
+        ),
+        "date": today(),
+        "machine": machine(),
+        "nodes": nodes,
+        "edges": world.bodies[0].edges.len(),
+        "steps_per_run": steps,
+        "palpa_tick_us": all[0],
+        "reference_step_us": all[1],
+        "palpa_best_us": best[0],
+        "reference_best_us": best[1],
+        "ratio": ratio,
+        "palpa_ns_per_node": best[0] * 1e3 / nodes as f64,
+        "largest_gap_m": gap,
+    });
+    std::fs::write(
+        args.out.join("reference.json"),
+        serde_json::to_string_pretty(&result)?,
+    )?;
+    let md = format!(
+        "# palpa-bench reference\n\n`{}` — {} — {}\n\n{nodes} nodes, {} edges, no contact, {steps} steps a run, best of 3:\n\n\
+         | | µs per step | ns per node |\n| --- | --- | --- |\n\
+         | palpa ({}) | {:.1} | {:.1} |\n| plain reference | {:.1} | {:.1} |\n\n\
+         Ratio palpa / reference: **{ratio:.3}** (goal ≤ 0.25). Largest node gap after 200 steps: {gap:.2e} m.\n",
+        result["command"].as_str().unwrap_or(""),
+        result["date"].as_str().unwrap_or(""),
+        result["machine"].as_str().unwrap_or(""),
+        world.bodies[0].edges.len(),
+        args.integrator,
+        best[0],
+        best[0] * 1e3 / nodes as f64,
+        best[1],
+        best[1] * 1e3 / nodes as f64,
+    );
+    std::fs::write(args.out.join("reference.md"), &md)?;
     println!("{md}");
     Ok(())
 }

@@ -2,13 +2,19 @@
 //! of the public CCD benchmark (Wang et al. 2021, sample queries; format in
 //! `shared/data/ccd-queries/README.md`) and prints one JSON object per file, one per line:
 //!
-//! `{"file":…,"kind":"vertex-face"|"edge-edge","queries":N,"positives":N,"false_negatives":N,"false_positives":N,"ns_per_query":X}`
+//! `{"file":…,"kind":"vertex-face"|"edge-edge","queries":N,"positives":N,"false_negatives":N,"false_positives":N,"ns_per_query":X,"mean_ns":X,"p999_ns":X,"max_ns":X}`
+//!
+//! and, when more than one file was read, a last line over all of them with `"file":"(all)"` and
+//! `"kind":"all"` (its `ns_per_query` the mean over all queries).
 //!
 //! A directory is walked recursively in sorted order and its `*.csv` files are read; a file named on
 //! the command line is read whatever its name. The kind of a file's queries is the name of the folder
 //! that holds it (`vertex-face` or `edge-edge`). `positives` counts the ground-truth collisions;
 //! `ns_per_query` is the mean wall time of one library call, the file's queries being run repeatedly
 //! (at least once, and for at least [`MIN_TIMING`] in all) so that short files still time well.
+//! `mean_ns`, `p999_ns` and `max_ns` are the distribution of the time of one query: each query is
+//! timed on its own, [`QUERY_ROUNDS`] rounds of enough calls to last [`QUERY_SPAN`], its time being
+//! the least of the rounds' means (what the query costs, not what the machine's other work added).
 //! Parsing is not timed. Bad input stops the run with a message naming the file and line, exit 1.
 
 mod query_file;
@@ -22,6 +28,10 @@ use std::time::{Duration, Instant};
 
 /// Least total time spent timing one file's queries.
 const MIN_TIMING: Duration = Duration::from_millis(20);
+/// Rounds of the per-query timing; the least round counts.
+const QUERY_ROUNDS: usize = 3;
+/// Least duration of one round of one query's calls.
+const QUERY_SPAN: Duration = Duration::from_micros(20);
 
 const USAGE: &str = "usage: palpa-ccd FILE_OR_DIR...\n\
     Runs palpa's CCD narrow phase on CCD benchmark query files (CSV, 8 rows per query) and prints\n\
@@ -59,22 +69,45 @@ fn run(args: &[String]) -> Result<(), String> {
         .collect::<Result<Vec<_>, String>>()?;
     let settings = CcdSettings::default();
     let mut out = std::io::stdout().lock();
+    let several = files.len() > 1;
+    let mut all = Report::default();
+    let mut all_times = Vec::new();
     for (kind, path) in files {
         let text = std::fs::read_to_string(&path)
             .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
         let queries = parse_query_file(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-        let report = evaluate(kind, &queries, &settings);
-        let line = report.to_json(&path.display().to_string(), kind);
-        // Flushed per file, so that a long run shows its progress.
-        let written = writeln!(out, "{line}").and_then(|()| out.flush());
-        match written {
-            Ok(()) => {}
-            // The reader has gone (`palpa-ccd … | head`): nothing more to say.
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
-            Err(e) => return Err(format!("cannot write to standard output: {e}")),
+        let (report, times) = evaluate(kind, &queries, &settings);
+        let line = report.to_json(&path.display().to_string(), kind.name(), &times);
+        all.add(&report);
+        all_times.extend_from_slice(&times);
+        if !write_line(&mut out, &line)? {
+            return Ok(());
         }
     }
+    if several {
+        all.ns_per_query = mean(&all_times);
+        let line = all.to_json("(all)", "all", &all_times);
+        write_line(&mut out, &line)?;
+    }
     Ok(())
+}
+
+/// Writes and flushes one line (so that a long run shows its progress); false when the reader has
+/// gone (`palpa-ccd … | head`): nothing more to say.
+fn write_line(out: &mut impl Write, line: &str) -> Result<bool, String> {
+    match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(false),
+        Err(e) => Err(format!("cannot write to standard output: {e}")),
+    }
+}
+
+fn mean(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        0.0
+    } else {
+        values.iter().sum::<f64>() / values.len() as f64
+    }
 }
 
 /// Adds `path` if it is a file, or the `*.csv` files under it, recursively in sorted order.
@@ -132,6 +165,7 @@ fn kind_of(path: &Path) -> Result<Kind, String> {
 }
 
 /// Counts and timing of one file.
+#[derive(Default)]
 struct Report {
     queries: usize,
     positives: usize,
@@ -141,16 +175,35 @@ struct Report {
 }
 
 impl Report {
-    fn to_json(&self, file: &str, kind: Kind) -> String {
+    fn add(&mut self, other: &Report) {
+        self.queries += other.queries;
+        self.positives += other.positives;
+        self.false_negatives += other.false_negatives;
+        self.false_positives += other.false_positives;
+    }
+
+    /// The JSON line, with the distribution of the per-query `times` (ns).
+    fn to_json(&self, file: &str, kind: &str, times: &[f64]) -> String {
+        let mut sorted = times.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let p999 = if sorted.is_empty() {
+            0.0
+        } else {
+            let rank = (0.999 * sorted.len() as f64).ceil() as usize;
+            sorted[rank.clamp(1, sorted.len()) - 1]
+        };
         format!(
-            "{{\"file\":{},\"kind\":\"{}\",\"queries\":{},\"positives\":{},\"false_negatives\":{},\"false_positives\":{},\"ns_per_query\":{:.1}}}",
+            "{{\"file\":{},\"kind\":\"{}\",\"queries\":{},\"positives\":{},\"false_negatives\":{},\"false_positives\":{},\"ns_per_query\":{:.1},\"mean_ns\":{:.1},\"p999_ns\":{:.1},\"max_ns\":{:.1}}}",
             json_string(file),
-            kind.name(),
+            kind,
             self.queries,
             self.positives,
             self.false_negatives,
             self.false_positives,
-            self.ns_per_query
+            self.ns_per_query,
+            mean(&sorted),
+            p999,
+            sorted.last().copied().unwrap_or(0.0),
         )
     }
 }
@@ -167,13 +220,29 @@ fn detect(kind: Kind, q: &Query, settings: &CcdSettings) -> bool {
     }
 }
 
-fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> Report {
+/// The time of one query (ns): the least over [`QUERY_ROUNDS`] rounds of the mean of enough calls
+/// to last [`QUERY_SPAN`].
+fn time_query(kind: Kind, q: &Query, settings: &CcdSettings) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..QUERY_ROUNDS {
+        let mut calls = 0u32;
+        let start = Instant::now();
+        loop {
+            std::hint::black_box(detect(kind, std::hint::black_box(q), settings));
+            calls += 1;
+            if start.elapsed() >= QUERY_SPAN {
+                break;
+            }
+        }
+        best = best.min(start.elapsed().as_nanos() as f64 / f64::from(calls));
+    }
+    best
+}
+
+fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> (Report, Vec<f64>) {
     let mut report = Report {
         queries: queries.len(),
-        positives: 0,
-        false_negatives: 0,
-        false_positives: 0,
-        ns_per_query: 0.0,
+        ..Report::default()
     };
     for q in queries {
         let hit = detect(kind, q, settings);
@@ -182,8 +251,12 @@ fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> Report {
         report.false_positives += usize::from(!q.truth && hit);
     }
     if queries.is_empty() {
-        return report;
+        return (report, Vec::new());
     }
+    let times = queries
+        .iter()
+        .map(|q| time_query(kind, q, settings))
+        .collect();
     let mut calls = 0usize;
     let start = Instant::now();
     loop {
@@ -198,7 +271,7 @@ fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> Report {
         }
     }
     report.ns_per_query = start.elapsed().as_nanos() as f64 / calls as f64;
-    report
+    (report, times)
 }
 
 /// A JSON string literal.

@@ -1,0 +1,865 @@
+//! The force kernel: the edge springs of a body in batches of [`LANES`] edges whose endpoints are all
+//! distinct, so that one batch goes through one set of SIMD lanes and its scatter needs no ordering;
+//! then one pass over the nodes that adds gravity, air, the links and their reactions, measures the
+//! body's energy and (for an explicit body) integrates the free nodes.
+//!
+//! The batches are a greedy colouring of the edges, rebuilt when the body's topology changes, in
+//! scratch reserved for the body's limits (no allocation on the tick). The edge forces accumulate per
+//! component (structure of arrays, `fx`, `fy`, `fz`), batch after batch in a fixed order; within a
+//! batch the lanes touch different nodes. Every lane does the same IEEE operations (add, subtract,
+//! multiply, divide, square root, no fused multiply-add) in the same order on every path — AVX on an
+//! x86_64 machine that has it, a scalar loop elsewhere or when asked — so the result bits do not
+//! depend on the path taken (`tests/kernel.rs` checks them against each other).
+
+use crate::Vec3;
+use crate::body::{Body, Edges};
+
+/// Edges per batch (one AVX register of `f64`).
+pub const LANES: usize = 4;
+
+/// The edges in batches of [`LANES`] with distinct endpoints, each batch's data side by side. A lane
+/// with no edge reads node 0 (`gather`) with zero constants and writes a padding slot past the
+/// nodes (`scatter`), so every batch is full.
+#[derive(Clone, Debug, Default)]
+pub struct EdgeBatches {
+    /// Nodes read by each lane, ends a and b.
+    gather: Vec<[[u32; LANES]; 2]>,
+    /// Slots written by each lane, ends a and b (the nodes, or padding slots for empty lanes).
+    scatter: Vec<[[u32; LANES]; 2]>,
+    /// Rest length, stiffness and damping of each lane's edge (zero in empty lanes).
+    constants: Vec<[[f64; LANES]; 3]>,
+    /// Edge index of each lane (`u32::MAX`: empty).
+    edge: Vec<[u32; LANES]>,
+    // Colouring scratch: the ends each batch holds, and the batches with room, oldest first.
+    ends: Vec<[u32; 2 * LANES]>,
+    open: Vec<u32>,
+}
+
+/// Batches with room the colouring keeps looking into (more pack tighter and cost more).
+pub const OPEN_BATCHES: usize = 16;
+
+impl EdgeBatches {
+    /// Scratch for a body of at most `edges` edges.
+    pub fn with_capacity(edges: usize) -> Self {
+        Self {
+            gather: Vec::with_capacity(edges),
+            scatter: Vec::with_capacity(edges),
+            constants: Vec::with_capacity(edges),
+            edge: Vec::with_capacity(edges),
+            ends: Vec::with_capacity(edges),
+            open: Vec::with_capacity(OPEN_BATCHES),
+        }
+    }
+
+    /// Number of batches.
+    pub fn len(&self) -> usize {
+        self.edge.len()
+    }
+
+    /// True when there is no batch.
+    pub fn is_empty(&self) -> bool {
+        self.edge.is_empty()
+    }
+
+    /// Lanes that hold an edge, over all lanes (1 when every batch is full).
+    pub fn occupancy(&self) -> f64 {
+        if self.edge.is_empty() {
+            return 1.0;
+        }
+        let used = self
+            .edge
+            .iter()
+            .flatten()
+            .filter(|&&e| e != u32::MAX)
+            .count();
+        used as f64 / (self.edge.len() * LANES) as f64
+    }
+
+    /// The edge index of each lane of each batch (`u32::MAX` for an empty lane).
+    pub fn lanes(&self) -> &[[u32; LANES]] {
+        &self.edge
+    }
+
+    /// Colours `edges` of a body of `nodes` nodes: each edge, in index order, goes to the oldest of
+    /// the last [`OPEN_BATCHES`] batches with room that holds neither of its ends, or starts a new
+    /// batch. Linear in the edges; allocation-free within the capacity given.
+    pub fn rebuild(&mut self, edges: &Edges, nodes: usize) {
+        let count = edges.len();
+        self.open.clear();
+        self.edge.clear();
+        self.ends.clear();
+        for k in 0..count {
+            let (a, b) = (edges.a[k], edges.b[k]);
+            if a as usize >= nodes || b as usize >= nodes || a == b {
+                continue;
+            }
+            let ends = &self.ends;
+            let fit = self.open.iter().position(|&slot| {
+                let held = &ends[slot as usize];
+                !held.contains(&a) && !held.contains(&b)
+            });
+            let position = match fit {
+                Some(p) => p,
+                None => {
+                    if self.open.len() == OPEN_BATCHES {
+                        // The oldest open batch stays partly empty.
+                        self.open.remove(0);
+                    }
+                    self.edge.push([u32::MAX; LANES]);
+                    self.ends.push([u32::MAX; 2 * LANES]);
+                    self.open.push(self.edge.len() as u32 - 1);
+                    self.open.len() - 1
+                }
+            };
+            let slot = self.open[position] as usize;
+            let lane = self.edge[slot]
+                .iter()
+                .position(|&e| e == u32::MAX)
+                .unwrap_or(0);
+            self.edge[slot][lane] = k as u32;
+            self.ends[slot][2 * lane] = a;
+            self.ends[slot][2 * lane + 1] = b;
+            if lane + 1 == LANES {
+                self.open.remove(position);
+            }
+        }
+        self.gather.clear();
+        self.scatter.clear();
+        self.constants.clear();
+        for batch in &self.edge {
+            let mut gather = [[0u32; LANES]; 2];
+            let mut scatter = [[0u32; LANES]; 2];
+            let mut constants = [[0.0; LANES]; 3];
+            for (lane, &k) in batch.iter().enumerate() {
+                if k == u32::MAX {
+                    // Empty lane: node 0 twice (no length, no force) into this lane's own padding.
+                    scatter[0][lane] = (nodes + 2 * lane) as u32;
+                    scatter[1][lane] = (nodes + 2 * lane + 1) as u32;
+                    continue;
+                }
+                let k = k as usize;
+                gather[0][lane] = edges.a[k];
+                gather[1][lane] = edges.b[k];
+                scatter[0][lane] = edges.a[k];
+                scatter[1][lane] = edges.b[k];
+                constants[0][lane] = edges.rest_length[k];
+                constants[1][lane] = edges.stiffness[k];
+                constants[2][lane] = edges.damping[k];
+            }
+            self.gather.push(gather);
+            self.scatter.push(scatter);
+            self.constants.push(constants);
+        }
+    }
+}
+
+/// Padding slots after the nodes in the force accumulators (two per lane).
+pub const PADDING: usize = 2 * LANES;
+
+/// What the node pass does besides the forces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodePass {
+    /// Forces only (the solver integrates).
+    Forces,
+    /// Forces, then semi-implicit Euler for every node (no node is held).
+    IntegrateAll,
+    /// Forces, then semi-implicit Euler for the nodes no tool holds.
+    IntegrateFree,
+}
+
+/// Per-body scratch of the force stage.
+#[derive(Clone, Debug)]
+pub struct ForceKernel {
+    batches: EdgeBatches,
+    /// Edge forces per node, x, y, z and a zero (N, world frame), then padding: one 32-byte
+    /// vector a node, so that a lane adds its force to an end with one vector operation.
+    force: Vec<[f64; 4]>,
+    /// The body state the batches were built for: (topology version, nodes, edges).
+    built_for: Option<(u64, usize, usize)>,
+    /// Use the SIMD path when the machine has one.
+    simd: bool,
+    /// Total mechanical energy of the body at the start of the last step (J): kinetic, elastic
+    /// (edges and links) and gravitational, as [`crate::dynamics::guard::body_energy`] defines it.
+    pub energy: f64,
+    /// Elastic energy of the edge springs at the start of the last step (J).
+    pub edge_energy: f64,
+}
+
+impl ForceKernel {
+    /// Scratch for `body` within its limits (its current size when it has none).
+    pub fn new(body: &Body) -> Self {
+        let (nodes, edges) = if body.limits.nodes == usize::MAX {
+            (body.node_count(), body.edges.len())
+        } else {
+            (body.limits.nodes, body.limits.edges)
+        };
+        Self {
+            batches: EdgeBatches::with_capacity(edges),
+            force: Vec::with_capacity(nodes + PADDING),
+            built_for: None,
+            simd: true,
+            energy: 0.0,
+            edge_energy: 0.0,
+        }
+    }
+
+    /// Chooses the SIMD path (when the machine has it) or the scalar one; both give the same bits.
+    pub fn set_simd(&mut self, simd: bool) {
+        self.simd = simd;
+    }
+
+    /// True when the next pass will take the SIMD path.
+    pub fn uses_simd(&self) -> bool {
+        self.simd && simd_available()
+    }
+
+    /// The batches (rebuilt on the next pass if the body's topology changed since).
+    pub fn batches(&self) -> &EdgeBatches {
+        &self.batches
+    }
+
+    /// Forgets the batches: the next pass rebuilds them.
+    pub fn invalidate(&mut self) {
+        self.built_for = None;
+    }
+
+    /// Rebuilds the batches for `body` if its topology changed since they were built.
+    pub fn refresh(&mut self, body: &Body) {
+        let stamp = (body.topology_version, body.node_count(), body.edges.len());
+        if self.built_for != Some(stamp) {
+            self.batches.rebuild(&body.edges, body.node_count());
+            self.built_for = Some(stamp);
+        }
+    }
+
+    /// The edge pass: spring forces into the accumulators (cleared first) and the springs' energy.
+    pub fn edge_forces(&mut self, body: &Body) {
+        self.refresh(body);
+        let n = body.node_count();
+        self.force.clear();
+        self.force.resize(n + PADDING, [0.0; 4]);
+        let x = &body.surface.position_in_world[..];
+        let v = &body.surface.velocity_in_world[..];
+        let mut energy = [0.0; LANES];
+        #[cfg(target_arch = "x86_64")]
+        if self.uses_simd() {
+            // SAFETY: the machine has AVX (checked by `simd_available`); every index the batches
+            // hold is below `n` (gather) or below `n + PADDING` (scatter), the arrays' lengths.
+            unsafe { avx::edge_pass(&self.batches, x, v, &mut self.force, &mut energy) };
+            self.edge_energy = lane_sum(&energy);
+            return;
+        }
+        scalar_edge_pass(&self.batches, x, v, &mut self.force, &mut energy);
+        self.edge_energy = lane_sum(&energy);
+    }
+
+    /// Adds a force from outside the body (N, world frame) to node `i`'s accumulator.
+    pub fn add_external(&mut self, i: usize, force: &Vec3) {
+        let f = &mut self.force[i];
+        f[0] += force.x;
+        f[1] += force.y;
+        f[2] += force.z;
+    }
+
+    /// The node pass after [`ForceKernel::edge_forces`]: every node's force is its springs' plus
+    /// m g − γ v plus its link k (h − x) + c (ḣ − v), written to `force_in_world`; the rigid component
+    /// gets gravity, air and the links' reactions; the homologues' world positions are refreshed; the
+    /// body's energy at the start of the step is measured; and, as `pass` asks, nodes are integrated
+    /// (v += Δt F/m, x_next = x + Δt v).
+    ///
+    /// Nodes go four at a time, each sum (reaction, torque, energies) kept per lane and the lanes
+    /// added in a fixed order at the end, so that the SIMD and scalar paths give the same bits.
+    pub fn node_pass(&mut self, body: &mut Body, gravity: &Vec3, dt: f64, pass: NodePass) {
+        let Body { surface, rigid, .. } = body;
+        rigid.reset_forces(gravity);
+        let rotation = rigid.world_from_body.to_rotation_matrix();
+        let m = rotation.matrix();
+        let omega = rigid.angular_velocity_in_world();
+        let frame = Frame {
+            rotation: [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ],
+            centre: rigid.position_in_world.into(),
+            velocity: rigid.velocity_in_world.into(),
+            omega: omega.into(),
+            gravity: (*gravity).into(),
+            dt,
+        };
+        let n = surface.mass.len();
+        let s = &mut *surface;
+        let mut nodes = Nodes {
+            edge_force: &self.force[..n],
+            mass: &s.mass[..n],
+            inverse_mass: &s.inverse_mass[..n],
+            air: &s.air_damping[..n],
+            link_stiffness: &s.link_stiffness[..n],
+            link_damping: &s.link_damping[..n],
+            homologue_in_body: &s.homologue_in_body[..n],
+            tool_contact: &s.tool_contact[..n],
+            position: &s.position_in_world[..n],
+            velocity: &mut s.velocity_in_world[..n],
+            next_position: &mut s.next_position_in_world[..n],
+            homologue: &mut s.homologue_in_world[..n],
+            force: &mut s.force_in_world[..n],
+        };
+        let mut sums = Sums::default();
+        #[cfg(target_arch = "x86_64")]
+        if self.uses_simd() {
+            // SAFETY: the machine has AVX (checked by `simd_available`).
+            unsafe { avx::node_pass(&frame, &mut nodes, pass, &mut sums) };
+        } else {
+            node_blocks(&frame, &mut nodes, pass, &mut sums);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        node_blocks(&frame, &mut nodes, pass, &mut sums);
+        let reaction_force = Vec3::new(
+            lane_sum(&sums.reaction[0]),
+            lane_sum(&sums.reaction[1]),
+            lane_sum(&sums.reaction[2]),
+        );
+        let reaction_torque = Vec3::new(
+            lane_sum(&sums.torque[0]),
+            lane_sum(&sums.torque[1]),
+            lane_sum(&sums.torque[2]),
+        );
+        self.energy = 0.5 * lane_sum(&sums.kinetic) + 0.5 * lane_sum(&sums.elastic)
+            - lane_sum(&sums.potential)
+            + self.edge_energy
+            + rigid.kinetic_energy()
+            - gravity.dot(&rigid.position_in_world) * rigid.mass;
+        rigid.force_in_world += reaction_force;
+        rigid.torque_in_world += reaction_torque;
+    }
+}
+
+/// The rigid component's motion and the step's constants, as the node pass reads them.
+struct Frame {
+    rotation: [[f64; 3]; 3],
+    centre: [f64; 3],
+    velocity: [f64; 3],
+    omega: [f64; 3],
+    gravity: [f64; 3],
+    dt: f64,
+}
+
+/// The per-node arrays the node pass reads and writes.
+struct Nodes<'a> {
+    edge_force: &'a [[f64; 4]],
+    mass: &'a [f64],
+    inverse_mass: &'a [f64],
+    air: &'a [f64],
+    link_stiffness: &'a [f64],
+    link_damping: &'a [f64],
+    homologue_in_body: &'a [Vec3],
+    tool_contact: &'a [crate::contact::tool::ToolContact],
+    position: &'a [Vec3],
+    velocity: &'a mut [Vec3],
+    next_position: &'a mut [Vec3],
+    homologue: &'a mut [Vec3],
+    force: &'a mut [Vec3],
+}
+
+/// Per-lane sums of the node pass.
+#[derive(Default)]
+struct Sums {
+    reaction: [[f64; LANES]; 3],
+    torque: [[f64; LANES]; 3],
+    kinetic: [f64; LANES],
+    elastic: [f64; LANES],
+    potential: [f64; LANES],
+}
+
+/// The node pass over every node, block after block of [`LANES`] nodes (the last block partial).
+/// Written lane-wise on arrays so that, compiled for AVX, each line is one vector operation; the
+/// arithmetic is the same in every lane and on every path.
+#[inline(always)]
+fn node_blocks(frame: &Frame, nodes: &mut Nodes, pass: NodePass, sums: &mut Sums) {
+    let n = nodes.mass.len();
+    let full = n - n % LANES;
+    let mut i0 = 0;
+    while i0 < full {
+        node_block::<LANES>(frame, nodes, pass, sums, i0);
+        i0 += LANES;
+    }
+    // The partial last block, one lane at a time into the same lane sums.
+    for i in full..n {
+        node_block::<1>(frame, nodes, pass, sums, i);
+    }
+}
+
+/// Nodes `i0 .. i0 + W` (W = LANES, or 1 for the tail, whose lane is `i0 % LANES`).
+#[inline(always)]
+fn node_block<const W: usize>(
+    f: &Frame,
+    nodes: &mut Nodes,
+    pass: NodePass,
+    sums: &mut Sums,
+    i0: usize,
+) {
+    let lane0 = if W == 1 { i0 % LANES } else { 0 };
+    let r = &f.rotation;
+    let mut x = [[0.0; W]; 3];
+    let mut v = [[0.0; W]; 3];
+    let mut hb = [[0.0; W]; 3];
+    let mut fe = [[0.0; W]; 3];
+    let (mut m, mut im, mut air, mut k, mut c) = ([0.0; W], [0.0; W], [0.0; W], [0.0; W], [0.0; W]);
+    for l in 0..W {
+        let i = i0 + l;
+        for d in 0..3 {
+            x[d][l] = nodes.position[i][d];
+            v[d][l] = nodes.velocity[i][d];
+            hb[d][l] = nodes.homologue_in_body[i][d];
+            fe[d][l] = nodes.edge_force[i][d];
+        }
+        m[l] = nodes.mass[i];
+        im[l] = nodes.inverse_mass[i];
+        air[l] = nodes.air[i];
+        k[l] = nodes.link_stiffness[i];
+        c[l] = nodes.link_damping[i];
+    }
+    let mut arm = [[0.0; W]; 3];
+    for d in 0..3 {
+        for l in 0..W {
+            arm[d][l] = r[d][0] * hb[0][l] + r[d][1] * hb[1][l] + r[d][2] * hb[2][l];
+        }
+    }
+    let mut h = [[0.0; W]; 3];
+    let mut hv = [[0.0; W]; 3];
+    let w = &f.omega;
+    for l in 0..W {
+        let cross = [
+            w[1] * arm[2][l] - w[2] * arm[1][l],
+            w[2] * arm[0][l] - w[0] * arm[2][l],
+            w[0] * arm[1][l] - w[1] * arm[0][l],
+        ];
+        for d in 0..3 {
+            h[d][l] = f.centre[d] + arm[d][l];
+            hv[d][l] = f.velocity[d] + cross[d];
+        }
+    }
+    let mut link = [[0.0; W]; 3];
+    let mut force = [[0.0; W]; 3];
+    let mut stretch2 = [0.0; W];
+    let mut speed2 = [0.0; W];
+    let mut height = [0.0; W];
+    for l in 0..W {
+        for d in 0..3 {
+            let stretch = h[d][l] - x[d][l];
+            link[d][l] = stretch * k[l] + (hv[d][l] - v[d][l]) * c[l];
+            force[d][l] = fe[d][l] + (f.gravity[d] * m[l] - v[d][l] * air[l]) + link[d][l];
+            stretch2[l] += stretch * stretch;
+            speed2[l] += v[d][l] * v[d][l];
+            height[l] += f.gravity[d] * x[d][l];
+        }
+    }
+    for l in 0..W {
+        let s = lane0 + l;
+        sums.kinetic[s] += m[l] * speed2[l];
+        sums.elastic[s] += k[l] * stretch2[l];
+        sums.potential[s] += m[l] * height[l];
+        let torque = [
+            arm[1][l] * link[2][l] - arm[2][l] * link[1][l],
+            arm[2][l] * link[0][l] - arm[0][l] * link[2][l],
+            arm[0][l] * link[1][l] - arm[1][l] * link[0][l],
+        ];
+        for d in 0..3 {
+            sums.reaction[d][s] -= link[d][l];
+            sums.torque[d][s] -= torque[d];
+        }
+    }
+    for l in 0..W {
+        let i = i0 + l;
+        nodes.homologue[i] = Vec3::new(h[0][l], h[1][l], h[2][l]);
+        nodes.force[i] = Vec3::new(force[0][l], force[1][l], force[2][l]);
+        let integrate = match pass {
+            NodePass::Forces => false,
+            NodePass::IntegrateAll => true,
+            NodePass::IntegrateFree => nodes.tool_contact[i].tool == crate::contact::tool::NO_TOOL,
+        };
+        if integrate {
+            let scale = f.dt * im[l];
+            let mut velocity = [0.0; 3];
+            let mut next = [0.0; 3];
+            for d in 0..3 {
+                velocity[d] = v[d][l] + force[d][l] * scale;
+                next[d] = x[d][l] + velocity[d] * f.dt;
+            }
+            nodes.velocity[i] = Vec3::from(velocity);
+            nodes.next_position[i] = Vec3::from(next);
+        }
+    }
+}
+
+/// True when this machine runs the SIMD path (x86_64 with AVX).
+pub fn simd_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// The lanes' partial sums added in lane order (both paths end this way).
+fn lane_sum(lanes: &[f64; LANES]) -> f64 {
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+}
+
+/// One batch's spring forces, lane by lane: the operations of the SIMD path in the same order.
+/// `d = x_b − x_a`, `l = √(d·d)`, `i = l (1 / d·d)`, `m = k (l − L) + c ((v_b − v_a)·d) i`, `F = d (m i)` on
+/// a and −F on b; zero where `d·d` is not above the smallest normal number. Energy ½ k (l − L)².
+fn scalar_edge_pass(
+    batches: &EdgeBatches,
+    x: &[Vec3],
+    v: &[Vec3],
+    f: &mut [[f64; 4]],
+    energy: &mut [f64; LANES],
+) {
+    for ((gather, scatter), constants) in batches
+        .gather
+        .iter()
+        .zip(&batches.scatter)
+        .zip(&batches.constants)
+    {
+        for lane in 0..LANES {
+            let (a, b) = (gather[0][lane] as usize, gather[1][lane] as usize);
+            let [rest, k, c] = [constants[0][lane], constants[1][lane], constants[2][lane]];
+            let (dx, dy, dz) = (x[b].x - x[a].x, x[b].y - x[a].y, x[b].z - x[a].z);
+            let (ux, uy, uz) = (v[b].x - v[a].x, v[b].y - v[a].y, v[b].z - v[a].z);
+            let length2 = dx * dx + dy * dy + dz * dz;
+            let length = length2.sqrt();
+            let (scale, e) = if length2 > f64::MIN_POSITIVE {
+                // 1 / l as l / l²: the square root and the division run side by side.
+                let inverse = length * (1.0 / length2);
+                let stretch = length - rest;
+                let magnitude = k * stretch + c * (ux * dx + uy * dy + uz * dz) * inverse;
+                (magnitude * inverse, k * stretch * stretch)
+            } else {
+                (0.0, 0.0)
+            };
+            let (px, py, pz) = (dx * scale, dy * scale, dz * scale);
+            energy[lane] += 0.5 * e;
+            let (sa, sb) = (scatter[0][lane] as usize, scatter[1][lane] as usize);
+            f[sa][0] += px;
+            f[sa][1] += py;
+            f[sa][2] += pz;
+            f[sb][0] -= px;
+            f[sb][1] -= py;
+            f[sb][2] -= pz;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{EdgeBatches, LANES};
+    use crate::Vec3;
+    use std::arch::x86_64::*;
+
+    /// Nodes i .. i + 4 of an array of `Vec3` (12 consecutive `f64` at `p`) as three vectors of
+    /// x, y and z.
+    #[inline(always)]
+    unsafe fn load3(p: *const f64) -> [__m256d; 3] {
+        unsafe {
+            let m03 = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(p)),
+                _mm_loadu_pd(p.add(6)),
+            );
+            let m14 = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(p.add(2))),
+                _mm_loadu_pd(p.add(8)),
+            );
+            let m25 = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(p.add(4))),
+                _mm_loadu_pd(p.add(10)),
+            );
+            [
+                _mm256_shuffle_pd::<0b1010>(m03, m14),
+                _mm256_shuffle_pd::<0b0101>(m03, m25),
+                _mm256_shuffle_pd::<0b1010>(m14, m25),
+            ]
+        }
+    }
+
+    /// The inverse of [`load3`].
+    #[inline(always)]
+    unsafe fn store3(p: *mut f64, [x, y, z]: [__m256d; 3]) {
+        unsafe {
+            let m03 = _mm256_shuffle_pd::<0b0000>(x, y);
+            let m14 = _mm256_shuffle_pd::<0b1010>(z, x);
+            let m25 = _mm256_shuffle_pd::<0b1111>(y, z);
+            _mm_storeu_pd(p, _mm256_castpd256_pd128(m03));
+            _mm_storeu_pd(p.add(6), _mm256_extractf128_pd::<1>(m03));
+            _mm_storeu_pd(p.add(2), _mm256_castpd256_pd128(m14));
+            _mm_storeu_pd(p.add(8), _mm256_extractf128_pd::<1>(m14));
+            _mm_storeu_pd(p.add(4), _mm256_castpd256_pd128(m25));
+            _mm_storeu_pd(p.add(10), _mm256_extractf128_pd::<1>(m25));
+        }
+    }
+
+    /// The node pass with AVX: every full block of four nodes as vectors, the operations of
+    /// [`super::node_block`] in the same order; the partial last block by the scalar code.
+    ///
+    /// # Safety
+    /// The machine must have AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn node_pass(
+        f: &super::Frame,
+        nodes: &mut super::Nodes,
+        pass: super::NodePass,
+        sums: &mut super::Sums,
+    ) {
+        use super::NodePass;
+        let n = nodes.mass.len();
+        let full = n - n % LANES;
+        let splat = |x: f64| _mm256_set1_pd(x);
+        let r = f.rotation.map(|row| row.map(splat));
+        let centre = f.centre.map(splat);
+        let velocity_of_centre = f.velocity.map(splat);
+        let w = f.omega.map(splat);
+        let g = f.gravity.map(splat);
+        let dt = splat(f.dt);
+        let zero = _mm256_setzero_pd();
+        let mut reaction = [zero; 3];
+        let mut torque_sum = [zero; 3];
+        let (mut kinetic, mut elastic, mut potential) = (zero, zero, zero);
+        let add = |a, b| _mm256_add_pd(a, b);
+        let sub = |a, b| _mm256_sub_pd(a, b);
+        let mul = |a, b| _mm256_mul_pd(a, b);
+        let mut i = 0;
+        while i < full {
+            // SAFETY: i + 4 <= n, the length of every slice read or written.
+            unsafe {
+                let x = load3(nodes.position.as_ptr().add(i) as *const f64);
+                let v = load3(nodes.velocity.as_ptr().add(i) as *const f64);
+                let hb = load3(nodes.homologue_in_body.as_ptr().add(i) as *const f64);
+                let fe = {
+                    let row = |l: usize| _mm256_loadu_pd(nodes.edge_force[i + l].as_ptr());
+                    let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                    // [x0 y0 z0 0], [x1 ...] → [x0 x1 x2 x3], [y...], [z...].
+                    let t0 = _mm256_unpacklo_pd(r0, r1);
+                    let t1 = _mm256_unpackhi_pd(r0, r1);
+                    let t2 = _mm256_unpacklo_pd(r2, r3);
+                    let t3 = _mm256_unpackhi_pd(r2, r3);
+                    [
+                        _mm256_permute2f128_pd::<0x20>(t0, t2),
+                        _mm256_permute2f128_pd::<0x20>(t1, t3),
+                        _mm256_permute2f128_pd::<0x31>(t0, t2),
+                    ]
+                };
+                let m = _mm256_loadu_pd(nodes.mass.as_ptr().add(i));
+                let im = _mm256_loadu_pd(nodes.inverse_mass.as_ptr().add(i));
+                let air = _mm256_loadu_pd(nodes.air.as_ptr().add(i));
+                let k = _mm256_loadu_pd(nodes.link_stiffness.as_ptr().add(i));
+                let c = _mm256_loadu_pd(nodes.link_damping.as_ptr().add(i));
+                let arm = [0, 1, 2].map(|d| {
+                    add(
+                        add(mul(r[d][0], hb[0]), mul(r[d][1], hb[1])),
+                        mul(r[d][2], hb[2]),
+                    )
+                });
+                let cross = [
+                    sub(mul(w[1], arm[2]), mul(w[2], arm[1])),
+                    sub(mul(w[2], arm[0]), mul(w[0], arm[2])),
+                    sub(mul(w[0], arm[1]), mul(w[1], arm[0])),
+                ];
+                let h = [0, 1, 2].map(|d| add(centre[d], arm[d]));
+                let hv = [0, 1, 2].map(|d| add(velocity_of_centre[d], cross[d]));
+                let stretch = [0, 1, 2].map(|d| sub(h[d], x[d]));
+                let link = [0, 1, 2].map(|d| add(mul(stretch[d], k), mul(sub(hv[d], v[d]), c)));
+                let force =
+                    [0, 1, 2].map(|d| add(add(fe[d], sub(mul(g[d], m), mul(v[d], air))), link[d]));
+                let mut stretch2 = zero;
+                let mut speed2 = zero;
+                let mut height = zero;
+                for d in 0..3 {
+                    stretch2 = add(stretch2, mul(stretch[d], stretch[d]));
+                    speed2 = add(speed2, mul(v[d], v[d]));
+                    height = add(height, mul(g[d], x[d]));
+                }
+                kinetic = add(kinetic, mul(m, speed2));
+                elastic = add(elastic, mul(k, stretch2));
+                potential = add(potential, mul(m, height));
+                let torque = [
+                    sub(mul(arm[1], link[2]), mul(arm[2], link[1])),
+                    sub(mul(arm[2], link[0]), mul(arm[0], link[2])),
+                    sub(mul(arm[0], link[1]), mul(arm[1], link[0])),
+                ];
+                for d in 0..3 {
+                    reaction[d] = sub(reaction[d], link[d]);
+                    torque_sum[d] = sub(torque_sum[d], torque[d]);
+                }
+                store3(nodes.homologue.as_mut_ptr().add(i) as *mut f64, h);
+                store3(nodes.force.as_mut_ptr().add(i) as *mut f64, force);
+                if pass != NodePass::Forces {
+                    let scale = mul(dt, im);
+                    let mut velocity = [0, 1, 2].map(|d| add(v[d], mul(force[d], scale)));
+                    let mut next = [0, 1, 2].map(|d| add(x[d], mul(velocity[d], dt)));
+                    if pass == NodePass::IntegrateFree {
+                        let free = |l: usize| {
+                            if nodes.tool_contact[i + l].tool == crate::contact::tool::NO_TOOL {
+                                -1i64
+                            } else {
+                                0
+                            }
+                        };
+                        let mask = _mm256_castsi256_pd(_mm256_set_epi64x(
+                            free(3),
+                            free(2),
+                            free(1),
+                            free(0),
+                        ));
+                        let old_next = load3(nodes.next_position.as_ptr().add(i) as *const f64);
+                        for d in 0..3 {
+                            velocity[d] = _mm256_blendv_pd(v[d], velocity[d], mask);
+                            next[d] = _mm256_blendv_pd(old_next[d], next[d], mask);
+                        }
+                    }
+                    store3(nodes.velocity.as_mut_ptr().add(i) as *mut f64, velocity);
+                    store3(nodes.next_position.as_mut_ptr().add(i) as *mut f64, next);
+                }
+            }
+            i += LANES;
+        }
+        let lanes = |v: __m256d| {
+            let mut out = [0.0; LANES];
+            // SAFETY: four f64 into four f64.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
+            out
+        };
+        sums.kinetic = lanes(kinetic);
+        sums.elastic = lanes(elastic);
+        sums.potential = lanes(potential);
+        sums.reaction = reaction.map(lanes);
+        sums.torque = torque_sum.map(lanes);
+        for i in full..n {
+            super::node_block::<1>(f, nodes, pass, sums, i);
+        }
+    }
+
+    /// Four `Vec3` at the given indices as vectors of x, y and z.
+    #[inline(always)]
+    unsafe fn gather3(p: *const f64, idx: &[u32; LANES]) -> [__m256d; 3] {
+        unsafe {
+            let at = |l: usize| p.add(3 * idx[l] as usize);
+            let lo = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(at(0))),
+                _mm_loadu_pd(at(2)),
+            );
+            let hi = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(at(1))),
+                _mm_loadu_pd(at(3)),
+            );
+            let z01 = _mm_unpacklo_pd(_mm_load_sd(at(0).add(2)), _mm_load_sd(at(1).add(2)));
+            let z23 = _mm_unpacklo_pd(_mm_load_sd(at(2).add(2)), _mm_load_sd(at(3).add(2)));
+            [
+                _mm256_unpacklo_pd(lo, hi),
+                _mm256_unpackhi_pd(lo, hi),
+                _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(z01), z23),
+            ]
+        }
+    }
+
+    /// The AVX edge pass: the scalar pass's operations, four lanes at a time.
+    ///
+    /// # Safety
+    /// The machine must have AVX; every gather index must be below `x.len()` and `v.len()`, every
+    /// scatter index below `f.len()`.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn edge_pass(
+        batches: &EdgeBatches,
+        x: &[Vec3],
+        v: &[Vec3],
+        f: &mut [[f64; 4]],
+        energy: &mut [f64; LANES],
+    ) {
+        let xp = x.as_ptr() as *const f64;
+        let vp = v.as_ptr() as *const f64;
+        let fp = f.as_mut_ptr() as *mut f64;
+        let tiny = _mm256_set1_pd(f64::MIN_POSITIVE);
+        let one = _mm256_set1_pd(1.0);
+        let half = _mm256_set1_pd(0.5);
+        let zero = _mm256_setzero_pd();
+        let mut energy_lanes = _mm256_setzero_pd();
+        for ((gather, scatter), constants) in batches
+            .gather
+            .iter()
+            .zip(&batches.scatter)
+            .zip(&batches.constants)
+        {
+            let [ga, gb] = gather;
+            // SAFETY (all loads and stores): indices within the slices, as the caller guarantees.
+            let (xa, xb, va, vb) = unsafe {
+                (
+                    gather3(xp, ga),
+                    gather3(xp, gb),
+                    gather3(vp, ga),
+                    gather3(vp, gb),
+                )
+            };
+            let dx = _mm256_sub_pd(xb[0], xa[0]);
+            let dy = _mm256_sub_pd(xb[1], xa[1]);
+            let dz = _mm256_sub_pd(xb[2], xa[2]);
+            let ux = _mm256_sub_pd(vb[0], va[0]);
+            let uy = _mm256_sub_pd(vb[1], va[1]);
+            let uz = _mm256_sub_pd(vb[2], va[2]);
+            let [rest, k, c] = constants;
+            let (rest, k, c) = unsafe {
+                (
+                    _mm256_loadu_pd(rest.as_ptr()),
+                    _mm256_loadu_pd(k.as_ptr()),
+                    _mm256_loadu_pd(c.as_ptr()),
+                )
+            };
+            let length2 = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                _mm256_mul_pd(dz, dz),
+            );
+            let length = _mm256_sqrt_pd(length2);
+            let valid = _mm256_cmp_pd::<_CMP_GT_OQ>(length2, tiny);
+            let inverse = _mm256_mul_pd(length, _mm256_div_pd(one, length2));
+            let stretch = _mm256_sub_pd(length, rest);
+            let along = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(ux, dx), _mm256_mul_pd(uy, dy)),
+                _mm256_mul_pd(uz, dz),
+            );
+            let magnitude = _mm256_add_pd(
+                _mm256_mul_pd(k, stretch),
+                _mm256_mul_pd(_mm256_mul_pd(c, along), inverse),
+            );
+            let scale = _mm256_and_pd(_mm256_mul_pd(magnitude, inverse), valid);
+            let e = _mm256_and_pd(_mm256_mul_pd(_mm256_mul_pd(k, stretch), stretch), valid);
+            energy_lanes = _mm256_add_pd(energy_lanes, _mm256_mul_pd(half, e));
+            let (px, py, pz) = (
+                _mm256_mul_pd(dx, scale),
+                _mm256_mul_pd(dy, scale),
+                _mm256_mul_pd(dz, scale),
+            );
+            // Lanes as [x y z 0] vectors: one add to each end's accumulator.
+            let t0 = _mm256_unpacklo_pd(px, py);
+            let t1 = _mm256_unpackhi_pd(px, py);
+            let t2 = _mm256_unpacklo_pd(pz, zero);
+            let t3 = _mm256_unpackhi_pd(pz, zero);
+            let lanes = [
+                _mm256_permute2f128_pd::<0x20>(t0, t2),
+                _mm256_permute2f128_pd::<0x20>(t1, t3),
+                _mm256_permute2f128_pd::<0x31>(t0, t2),
+                _mm256_permute2f128_pd::<0x31>(t1, t3),
+            ];
+            let [sa, sb] = scatter;
+            for (lane, p) in lanes.into_iter().enumerate() {
+                unsafe {
+                    let a = fp.add(4 * sa[lane] as usize);
+                    _mm256_storeu_pd(a, _mm256_add_pd(_mm256_loadu_pd(a), p));
+                    let b = fp.add(4 * sb[lane] as usize);
+                    _mm256_storeu_pd(b, _mm256_sub_pd(_mm256_loadu_pd(b), p));
+                }
+            }
+        }
+        unsafe { _mm256_storeu_pd(energy.as_mut_ptr(), energy_lanes) };
+    }
+}

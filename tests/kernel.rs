@@ -1,0 +1,214 @@
+//! The force kernel (`palpa::dynamics::kernel`): its edge batches are a valid colouring, its forces
+//! and energy are the model's, and its SIMD and scalar paths give the same bits — for one pass on
+//! random states and for whole runs of the shipped scenes, topology changes included.
+
+mod common;
+
+use common::Rng;
+use palpa::Vec3;
+use palpa::body::Body;
+use palpa::dynamics::guard::body_energy;
+use palpa::dynamics::kernel::{ForceKernel, LANES, NodePass, simd_available};
+use palpa::scene::load_scene;
+use palpa::world::World;
+
+fn organ(subdivisions: u32, extra: &str) -> World {
+    World::from_scene(&common::scene(&format!(
+        r#"
+        [[body]]
+        name = "organ"
+        mesh = {{ icosphere = {{ radius = 0.05, subdivisions = {subdivisions} }} }}
+        position = [0.0, 0.0, 0.1]
+        air_viscosity = 0.5
+        {extra}
+        "#
+    )))
+}
+
+/// Every node moved up to 3 mm and given a random velocity, so that every spring and link works.
+fn shake(body: &mut Body, rng: &mut Rng) {
+    let s = &mut body.surface;
+    for i in 0..s.position_in_world.len() {
+        s.position_in_world[i] += rng.unit_vector() * (0.003 * rng.unit());
+        s.velocity_in_world[i] = rng.unit_vector() * (0.2 * rng.unit());
+    }
+}
+
+/// The forces of MODEL.md §2 written out plainly, one edge and one node at a time.
+fn plain_forces(body: &Body, gravity: &Vec3) -> Vec<Vec3> {
+    let s = &body.surface;
+    let r = &body.rigid;
+    let rotation = r.world_from_body.to_rotation_matrix();
+    let omega = r.angular_velocity_in_world();
+    let mut f: Vec<Vec3> = (0..s.mass.len())
+        .map(|i| {
+            let arm = rotation * s.homologue_in_body[i];
+            let link = (r.position_in_world + arm - s.position_in_world[i]) * s.link_stiffness[i]
+                + (r.velocity_in_world + omega.cross(&arm) - s.velocity_in_world[i])
+                    * s.link_damping[i];
+            gravity * s.mass[i] - s.velocity_in_world[i] * s.air_damping[i] + link
+        })
+        .collect();
+    let e = &body.edges;
+    for k in 0..e.len() {
+        let (a, b) = (e.a[k] as usize, e.b[k] as usize);
+        let d = s.position_in_world[b] - s.position_in_world[a];
+        let u = d.normalize();
+        let magnitude = e.stiffness[k] * (d.norm() - e.rest_length[k])
+            + e.damping[k] * (s.velocity_in_world[b] - s.velocity_in_world[a]).dot(&u);
+        f[a] += u * magnitude;
+        f[b] -= u * magnitude;
+    }
+    f
+}
+
+#[test]
+fn the_batches_colour_every_edge_once_with_distinct_ends() {
+    for subdivisions in [0, 2, 4] {
+        let mut world = organ(subdivisions, "");
+        // The batches are built by the first pass.
+        world.step();
+        let body = &world.bodies[0];
+        let batches = world.force_kernel(0).unwrap().batches();
+        let mut seen = vec![0u32; body.edges.len()];
+        for batch in batches.lanes() {
+            let mut ends = Vec::new();
+            for &k in batch {
+                if k == u32::MAX {
+                    continue;
+                }
+                seen[k as usize] += 1;
+                ends.push(body.edges.a[k as usize]);
+                ends.push(body.edges.b[k as usize]);
+            }
+            let count = ends.len();
+            ends.sort_unstable();
+            ends.dedup();
+            assert_eq!(ends.len(), count, "a batch touches a node twice: {batch:?}");
+        }
+        assert!(
+            seen.iter().all(|&n| n == 1),
+            "every edge in exactly one lane"
+        );
+        let occupancy = batches.occupancy();
+        println!(
+            "{} nodes, {} edges: {} batches of {LANES}, occupancy {occupancy:.3}",
+            body.node_count(),
+            body.edges.len(),
+            batches.len()
+        );
+        // Small meshes pack less well (a node of degree 5 or 6 in 30 edges).
+        assert!(occupancy >= if subdivisions >= 2 { 0.95 } else { 0.7 });
+    }
+}
+
+#[test]
+fn forces_and_energy_are_the_models() {
+    let mut rng = Rng(7);
+    for subdivisions in [1, 3] {
+        let mut world = organ(subdivisions, "");
+        let gravity = world.params.gravity;
+        let body = &mut world.bodies[0];
+        shake(body, &mut rng);
+        let expected = plain_forces(body, &gravity);
+        let energy = body_energy(body, &gravity);
+        let mut kernel = ForceKernel::new(body);
+        kernel.edge_forces(body);
+        kernel.node_pass(body, &gravity, 1e-3, NodePass::Forces);
+        let scale = expected.iter().map(|f| f.norm()).fold(0.0, f64::max);
+        let worst = expected
+            .iter()
+            .zip(&body.surface.force_in_world)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        println!("largest force difference {worst:.2e} N of {scale:.2e} N");
+        assert!(worst <= 1e-12 * scale, "{worst} of {scale}");
+        let gap = (kernel.energy - energy).abs();
+        println!("energy {:.12e} J, kernel {:.12e} J", energy, kernel.energy);
+        assert!(gap <= 1e-12 * energy.abs().max(1e-9), "{gap}");
+    }
+}
+
+#[test]
+fn simd_and_scalar_passes_give_the_same_bits() {
+    if !simd_available() {
+        eprintln!("no SIMD path on this machine: the scalar path is the only one");
+        return;
+    }
+    let mut rng = Rng(11);
+    for subdivisions in [0, 2, 4] {
+        let mut world = organ(subdivisions, "");
+        let gravity = world.params.gravity;
+        shake(&mut world.bodies[0], &mut rng);
+        let mut results = Vec::new();
+        for simd in [true, false] {
+            let mut body = world.bodies[0].clone();
+            let mut kernel = ForceKernel::new(&body);
+            kernel.set_simd(simd);
+            assert_eq!(kernel.uses_simd(), simd);
+            kernel.edge_forces(&body);
+            kernel.node_pass(&mut body, &gravity, 1e-3, NodePass::IntegrateAll);
+            let bits: Vec<u64> = body
+                .surface
+                .force_in_world
+                .iter()
+                .chain(&body.surface.velocity_in_world)
+                .chain(&body.surface.next_position_in_world)
+                .flat_map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+                .chain([kernel.energy.to_bits(), kernel.edge_energy.to_bits()])
+                .collect();
+            results.push(bits);
+        }
+        assert!(results[0] == results[1], "{subdivisions}: the paths differ");
+    }
+}
+
+/// FNV-1a over every node's position and velocity after every tick.
+fn run_digest(mut world: World, ticks: u64) -> u64 {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for _ in 0..ticks {
+        world.step();
+        for body in &world.bodies {
+            let s = &body.surface;
+            for v in s.position_in_world.iter().chain(&s.velocity_in_world) {
+                for x in v.iter() {
+                    for byte in x.to_bits().to_le_bytes() {
+                        hash ^= byte as u64;
+                        hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+                    }
+                }
+            }
+        }
+    }
+    hash
+}
+
+#[test]
+fn whole_runs_match_bit_for_bit_on_both_paths() {
+    if !simd_available() {
+        eprintln!("no SIMD path on this machine: the scalar path is the only one");
+        return;
+    }
+    // Palpation with subdivision, a cut and a transection, tearing, several bodies on ligaments:
+    // the batches are rebuilt on every topology change.
+    for (name, ticks) in [
+        ("scenes/probe_refine.toml", 600),
+        ("scenes/incision.toml", 1500),
+        ("scenes/transection.toml", 1200),
+        ("scenes/tear.toml", 1200),
+        ("scenes/two_organs.toml", 300),
+    ] {
+        let scene = load_scene(&common::repo_root().join(name)).unwrap_or_else(|e| panic!("{e}"));
+        let mut digests = Vec::new();
+        for simd in [true, false] {
+            let mut world = World::from_scene(&scene);
+            world.set_simd(simd);
+            digests.push(run_digest(world, ticks));
+        }
+        println!("{name}: {:016x} / {:016x}", digests[0], digests[1]);
+        assert_eq!(
+            digests[0], digests[1],
+            "{name}: SIMD and scalar runs differ"
+        );
+    }
+}
