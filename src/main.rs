@@ -225,8 +225,10 @@ impl Recording {
             display_rate_hz: 60.0,
             keyframe_every_s: 2.0,
         };
+        // An offline run waits for the writer rather than drop a record.
         let recorder = Recorder::start(path, scene, world, &session, RecorderSettings::default())
-            .map_err(|e| anyhow::anyhow!(e))?;
+            .map_err(|e| anyhow::anyhow!(e))?
+            .waiting_when_full();
         let this = Self {
             sink: RecordSink::to(recorder),
             meshes: std::cell::RefCell::new(palpa::display::MeshSchedule::new(world, 60.0, 2.0)),

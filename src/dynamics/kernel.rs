@@ -18,16 +18,18 @@ use crate::body::{Body, Edges};
 pub const LANES: usize = 4;
 
 /// The edges in batches of [`LANES`] with distinct endpoints, each batch's data side by side. A lane
-/// with no edge reads node 0 (`gather`) with zero constants and writes a padding slot past the
-/// nodes (`scatter`), so every batch is full.
+/// with no edge has node 0 at both ends (no length: no force, no energy), so every batch is full.
 #[derive(Clone, Debug, Default)]
 pub struct EdgeBatches {
-    /// Nodes read by each lane, ends a and b.
-    gather: Vec<[[u32; LANES]; 2]>,
-    /// Slots written by each lane, ends a and b (the nodes, or padding slots for empty lanes).
-    scatter: Vec<[[u32; LANES]; 2]>,
-    /// Rest length, stiffness and damping of each lane's edge (zero in empty lanes).
-    constants: Vec<[[f64; LANES]; 3]>,
+    /// Ends a and b of each lane's edge.
+    ends_of: Vec<[[u32; LANES]; 2]>,
+    /// Rest length of each lane's edge (m; zero in empty lanes).
+    rest: Vec<[f64; LANES]>,
+    /// Stiffness and damping of each lane's edge, when they differ between edges (empty otherwise).
+    stiffness_damping: Vec<[[f64; LANES]; 2]>,
+    /// The stiffness and damping of every edge, when they are all the same (the common case: one
+    /// load fewer per batch).
+    uniform: Option<(f64, f64)>,
     /// Edge index of each lane (`u32::MAX`: empty).
     edge: Vec<[u32; LANES]>,
     // Colouring scratch: the ends each batch holds, and the batches with room, oldest first.
@@ -42,9 +44,10 @@ impl EdgeBatches {
     /// Scratch for a body of at most `edges` edges.
     pub fn with_capacity(edges: usize) -> Self {
         Self {
-            gather: Vec::with_capacity(edges),
-            scatter: Vec::with_capacity(edges),
-            constants: Vec::with_capacity(edges),
+            ends_of: Vec::with_capacity(edges),
+            rest: Vec::with_capacity(edges),
+            stiffness_damping: Vec::with_capacity(edges),
+            uniform: None,
             edge: Vec::with_capacity(edges),
             ends: Vec::with_capacity(edges),
             open: Vec::with_capacity(OPEN_BATCHES),
@@ -123,38 +126,47 @@ impl EdgeBatches {
                 self.open.remove(position);
             }
         }
-        self.gather.clear();
-        self.scatter.clear();
-        self.constants.clear();
+        self.ends_of.clear();
+        self.rest.clear();
+        self.stiffness_damping.clear();
+        let same = |x: &[f64]| {
+            x.first()
+                .is_some_and(|first| x.iter().all(|y| y.to_bits() == first.to_bits()))
+        };
+        self.uniform = (same(&edges.stiffness) && same(&edges.damping))
+            .then(|| (edges.stiffness[0], edges.damping[0]));
         for batch in &self.edge {
-            let mut gather = [[0u32; LANES]; 2];
-            let mut scatter = [[0u32; LANES]; 2];
-            let mut constants = [[0.0; LANES]; 3];
+            let mut ends = [[0u32; LANES]; 2];
+            let mut rest = [0.0; LANES];
+            let mut stiffness_damping = [[0.0; LANES]; 2];
             for (lane, &k) in batch.iter().enumerate() {
                 if k == u32::MAX {
-                    // Empty lane: node 0 twice (no length, no force) into this lane's own padding.
-                    scatter[0][lane] = (nodes + 2 * lane) as u32;
-                    scatter[1][lane] = (nodes + 2 * lane + 1) as u32;
                     continue;
                 }
                 let k = k as usize;
-                gather[0][lane] = edges.a[k];
-                gather[1][lane] = edges.b[k];
-                scatter[0][lane] = edges.a[k];
-                scatter[1][lane] = edges.b[k];
-                constants[0][lane] = edges.rest_length[k];
-                constants[1][lane] = edges.stiffness[k];
-                constants[2][lane] = edges.damping[k];
+                ends[0][lane] = edges.a[k];
+                ends[1][lane] = edges.b[k];
+                rest[lane] = edges.rest_length[k];
+                stiffness_damping[0][lane] = edges.stiffness[k];
+                stiffness_damping[1][lane] = edges.damping[k];
             }
-            self.gather.push(gather);
-            self.scatter.push(scatter);
-            self.constants.push(constants);
+            self.ends_of.push(ends);
+            self.rest.push(rest);
+            if self.uniform.is_none() {
+                self.stiffness_damping.push(stiffness_damping);
+            }
+        }
+    }
+
+    /// Stiffness and damping of the lanes of batch `i`.
+    #[inline(always)]
+    fn stiffness_damping_of(&self, i: usize) -> [[f64; LANES]; 2] {
+        match self.uniform {
+            Some((k, c)) => [[k; LANES], [c; LANES]],
+            None => self.stiffness_damping[i],
         }
     }
 }
-
-/// Padding slots after the nodes in the force accumulators (two per lane).
-pub const PADDING: usize = 2 * LANES;
 
 /// What the node pass does besides the forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -195,7 +207,7 @@ impl ForceKernel {
         };
         Self {
             batches: EdgeBatches::with_capacity(edges),
-            force: Vec::with_capacity(nodes + PADDING),
+            force: Vec::with_capacity(nodes),
             built_for: None,
             simd: true,
             energy: 0.0,
@@ -237,14 +249,15 @@ impl ForceKernel {
         self.refresh(body);
         let n = body.node_count();
         self.force.clear();
-        self.force.resize(n + PADDING, [0.0; 4]);
+        self.force.resize(n, [0.0; 4]);
         let x = &body.surface.position_in_world[..];
         let v = &body.surface.velocity_in_world[..];
         let mut energy = [0.0; LANES];
         #[cfg(target_arch = "x86_64")]
         if self.uses_simd() {
             // SAFETY: the machine has AVX (checked by `simd_available`); every index the batches
-            // hold is below `n` (gather) or below `n + PADDING` (scatter), the arrays' lengths.
+            // hold is a node of the body (`rebuild` skips edges with an end past the nodes; empty
+            // lanes hold node 0, and a body with a batch has nodes), below the arrays' lengths.
             unsafe { avx::edge_pass(&self.batches, x, v, &mut self.force, &mut energy) };
             self.edge_energy = lane_sum(&energy);
             return;
@@ -519,15 +532,11 @@ fn scalar_edge_pass(
     f: &mut [[f64; 4]],
     energy: &mut [f64; LANES],
 ) {
-    for ((gather, scatter), constants) in batches
-        .gather
-        .iter()
-        .zip(&batches.scatter)
-        .zip(&batches.constants)
-    {
+    for (i, (ends, rest)) in batches.ends_of.iter().zip(&batches.rest).enumerate() {
+        let [k, c] = batches.stiffness_damping_of(i);
         for lane in 0..LANES {
-            let (a, b) = (gather[0][lane] as usize, gather[1][lane] as usize);
-            let [rest, k, c] = [constants[0][lane], constants[1][lane], constants[2][lane]];
+            let (a, b) = (ends[0][lane] as usize, ends[1][lane] as usize);
+            let (rest, k, c) = (rest[lane], k[lane], c[lane]);
             let (dx, dy, dz) = (x[b].x - x[a].x, x[b].y - x[a].y, x[b].z - x[a].z);
             let (ux, uy, uz) = (v[b].x - v[a].x, v[b].y - v[a].y, v[b].z - v[a].z);
             let length2 = dx * dx + dy * dy + dz * dz;
@@ -543,13 +552,12 @@ fn scalar_edge_pass(
             };
             let (px, py, pz) = (dx * scale, dy * scale, dz * scale);
             energy[lane] += 0.5 * e;
-            let (sa, sb) = (scatter[0][lane] as usize, scatter[1][lane] as usize);
-            f[sa][0] += px;
-            f[sa][1] += py;
-            f[sa][2] += pz;
-            f[sb][0] -= px;
-            f[sb][1] -= py;
-            f[sb][2] -= pz;
+            f[a][0] += px;
+            f[a][1] += py;
+            f[a][2] += pz;
+            f[b][0] -= px;
+            f[b][1] -= py;
+            f[b][2] -= pz;
         }
     }
 }
@@ -767,8 +775,8 @@ mod avx {
     /// The AVX edge pass: the scalar pass's operations, four lanes at a time.
     ///
     /// # Safety
-    /// The machine must have AVX; every gather index must be below `x.len()` and `v.len()`, every
-    /// scatter index below `f.len()`.
+    /// The machine must have AVX; every index of the batches must be below `x.len()`, `v.len()`
+    /// and `f.len()`.
     #[target_feature(enable = "avx")]
     pub unsafe fn edge_pass(
         batches: &EdgeBatches,
@@ -785,13 +793,8 @@ mod avx {
         let half = _mm256_set1_pd(0.5);
         let zero = _mm256_setzero_pd();
         let mut energy_lanes = _mm256_setzero_pd();
-        for ((gather, scatter), constants) in batches
-            .gather
-            .iter()
-            .zip(&batches.scatter)
-            .zip(&batches.constants)
-        {
-            let [ga, gb] = gather;
+        for (i, (ends, rest)) in batches.ends_of.iter().zip(&batches.rest).enumerate() {
+            let [ga, gb] = ends;
             // SAFETY (all loads and stores): indices within the slices, as the caller guarantees.
             let (xa, xb, va, vb) = unsafe {
                 (
@@ -807,13 +810,19 @@ mod avx {
             let ux = _mm256_sub_pd(vb[0], va[0]);
             let uy = _mm256_sub_pd(vb[1], va[1]);
             let uz = _mm256_sub_pd(vb[2], va[2]);
-            let [rest, k, c] = constants;
             let (rest, k, c) = unsafe {
-                (
-                    _mm256_loadu_pd(rest.as_ptr()),
-                    _mm256_loadu_pd(k.as_ptr()),
-                    _mm256_loadu_pd(c.as_ptr()),
-                )
+                let rest = _mm256_loadu_pd(rest.as_ptr());
+                match batches.uniform {
+                    Some((k, c)) => (rest, _mm256_set1_pd(k), _mm256_set1_pd(c)),
+                    None => {
+                        let [k, c] = &batches.stiffness_damping[i];
+                        (
+                            rest,
+                            _mm256_loadu_pd(k.as_ptr()),
+                            _mm256_loadu_pd(c.as_ptr()),
+                        )
+                    }
+                }
             };
             let length2 = _mm256_add_pd(
                 _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
@@ -850,7 +859,7 @@ mod avx {
                 _mm256_permute2f128_pd::<0x31>(t0, t2),
                 _mm256_permute2f128_pd::<0x31>(t1, t3),
             ];
-            let [sa, sb] = scatter;
+            let [sa, sb] = ends;
             for (lane, p) in lanes.into_iter().enumerate() {
                 unsafe {
                     let a = fp.add(4 * sa[lane] as usize);

@@ -130,9 +130,24 @@ pub struct Recorder {
     dropped: Arc<AtomicU64>,
     done: Arc<AtomicBool>,
     thread: Option<JoinHandle<Result<RecordingSummary, String>>>,
+    /// Wait for room instead of dropping (an offline run, where no deadline is at stake).
+    wait_when_full: bool,
 }
 
 impl Recorder {
+    /// Makes [`Recorder::push`] and [`Recorder::push_mesh`] wait for the writer when the queue or
+    /// the pool is full, instead of dropping the record: for a run that is not real time (`palpa
+    /// run`), which may step faster than the writer writes and must lose nothing.
+    pub fn waiting_when_full(mut self) -> Self {
+        self.wait_when_full = true;
+        self
+    }
+
+    /// While waiting is on and the writer still runs: lets it work.
+    fn can_wait(&self) -> bool {
+        self.wait_when_full && self.thread.as_ref().is_some_and(|t| !t.is_finished())
+    }
+
     /// Creates the file, writes the scene and its assets, and starts the writer thread.
     pub fn start(
         path: &Path,
@@ -211,13 +226,27 @@ impl Recorder {
             dropped,
             done,
             thread: Some(thread),
+            wait_when_full: false,
         })
     }
 
-    /// Hands a record to the writer; never blocks. Returns false (and counts it) when the queue was
-    /// full.
+    /// Hands a record to the writer; never blocks (unless [`Recorder::waiting_when_full`]). Returns
+    /// false (and counts it) when the queue was full.
     pub fn push(&self, record: Record) -> bool {
-        match self.queue.push(record) {
+        let mut record = record;
+        loop {
+            match self.queue.push(record) {
+                Err(rejected) if self.can_wait() => {
+                    record = rejected;
+                    std::thread::yield_now();
+                }
+                other => return self.pushed(other),
+            }
+        }
+    }
+
+    fn pushed(&self, outcome: Result<(), Record>) -> bool {
+        match outcome {
             Ok(()) => true,
             Err(rejected) => {
                 if let Record::Mesh { data, .. } = rejected {
@@ -232,7 +261,12 @@ impl Recorder {
     /// Copies a mesh message into a pooled buffer and hands it over; counts a drop when no buffer
     /// is free. Never allocates: buffers were sized for the largest message at start.
     pub fn push_mesh(&self, header: &MeshHeaderV1, bytes: &[u8]) -> bool {
-        let Some(mut data) = self.pool.pop() else {
+        let mut buffer = self.pool.pop();
+        while buffer.is_none() && self.can_wait() {
+            std::thread::yield_now();
+            buffer = self.pool.pop();
+        }
+        let Some(mut data) = buffer else {
             self.dropped.fetch_add(1, Ordering::Relaxed);
             return false;
         };
