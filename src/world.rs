@@ -14,7 +14,7 @@ use crate::contact::bodies::{
 };
 use crate::contact::obstacle::resolve_nodes_against_obstacles;
 use crate::contact::tool::{
-    capture_among, capture_broad_phase, grasp_nodes, hold_contact_nodes, jaws_touch,
+    HeldNodes, capture_among, capture_broad_phase, grasp_nodes, hold_contact_nodes, jaws_touch,
     push_out_of_tools, release_nodes,
 };
 use crate::dynamics::Integrator;
@@ -219,10 +219,21 @@ impl BodySolver {
     }
 }
 
-/// Candidates of the tool broad phase, per body (reserved for its node capacity).
+/// Candidates of the tool broad phase and the nodes the tools hold, per body (reserved for its
+/// node capacity).
 #[derive(Clone, Debug, Default)]
 struct BroadScratch {
     nodes: Vec<u32>,
+    held: HeldNodes,
+}
+
+impl BroadScratch {
+    fn with_capacity(nodes: usize) -> Self {
+        Self {
+            nodes: Vec::with_capacity(nodes),
+            held: HeldNodes::with_capacity(nodes),
+        }
+    }
 }
 
 /// The stages of a step, as [`World::step_profiled`] times them.
@@ -355,6 +366,7 @@ fn tool_bit(tool: usize) -> u64 {
 fn cutting_blade_mask(
     cutter: &mut Cutter,
     body: &mut Body,
+    held: &mut HeldNodes,
     tools: &[Tool],
     previous_force: &[f64],
 ) -> u64 {
@@ -375,6 +387,7 @@ fn cutting_blade_mask(
                     *contact = crate::contact::tool::ToolContact::default();
                 }
             }
+            held.invalidate();
         }
         mask |= tool_bit(index);
     }
@@ -538,9 +551,7 @@ impl World {
             .iter()
             .map(|b| {
                 let (nodes, _) = b.mesh_capacity();
-                BroadScratch {
-                    nodes: Vec::with_capacity(nodes),
-                }
+                BroadScratch::with_capacity(nodes)
             })
             .collect();
         self.origin = (0..self.bodies.len()).collect();
@@ -600,9 +611,7 @@ impl World {
                     kernel: ForceKernel::new(&shell),
                     refinement,
                     cutter,
-                    broad: BroadScratch {
-                        nodes: Vec::with_capacity(nodes),
-                    },
+                    broad: BroadScratch::with_capacity(nodes),
                     body: shell,
                 }));
             }
@@ -676,6 +685,7 @@ impl World {
         cutter.renumbered();
         self.solvers[b].topology_changed(body, dt);
         self.kernels[b].invalidate();
+        self.broad[b].held.invalidate();
         if let Some(refinement) = self.refinements[b].as_mut() {
             refinement.renumbered(body);
         }
@@ -710,6 +720,7 @@ impl World {
             self.kernels.push(spare.kernel);
             self.refinements.push(spare.refinement);
             self.cutters.push(spare.cutter);
+            spare.broad.held.invalidate();
             self.broad.push(spare.broad);
             self.guards.push(guard);
             self.origin.push(spare.origin);
@@ -727,6 +738,21 @@ impl World {
         for spare in self.spares.iter_mut().flatten() {
             spare.kernel.set_simd(simd);
         }
+    }
+
+    /// The nodes of body `b` the contact stage will take as held next tick (its list refreshed as
+    /// the next step refreshes it), and those a sweep of every node's contact state finds: the two
+    /// must agree (tests check it after every step).
+    pub fn held_nodes_and_sweep(&self, b: usize) -> (Vec<u32>, Vec<u32>) {
+        let body = &self.bodies[b];
+        let mut held = self.broad[b].held.clone();
+        held.refresh(&body.surface, body.topology_version);
+        let sweep = (0..body.node_count() as u32)
+            .filter(|&i| {
+                body.surface.tool_contact[i as usize].tool != crate::contact::tool::NO_TOOL
+            })
+            .collect();
+        (held.nodes().to_vec(), sweep)
     }
 
     /// The force stage's scratch of body `b` (its edge batches).
@@ -786,8 +812,9 @@ impl World {
             if tool.grasping {
                 // Let go when the jaws open past the release opening (or the tool left the scene).
                 if tool.part_count < 2 || tool.jaw > settings.release_above {
-                    for body in &mut self.bodies {
+                    for (body, broad) in self.bodies.iter_mut().zip(self.broad.iter_mut()) {
                         counters.released += release_nodes(&mut body.surface, index, tool);
+                        broad.held.invalidate();
                     }
                     tool.grasping = false;
                 }
@@ -797,9 +824,10 @@ impl World {
                     jaws_touch(&body.surface, index, tool, &mut touching);
                 }
                 if touching[0] && touching[1] {
-                    for body in &mut self.bodies {
+                    for (body, broad) in self.bodies.iter_mut().zip(self.broad.iter_mut()) {
                         counters.grasped +=
                             grasp_nodes(&mut body.surface, index, tool, settings.reach);
+                        broad.held.invalidate();
                     }
                     tool.grasping = true;
                 }
@@ -840,6 +868,9 @@ impl World {
             .zip(self.cutters.iter_mut())
             .enumerate()
         {
+            if systems.tool_contact {
+                broad.held.refresh(&body.surface, body.topology_version);
+            }
             // Blades that cut this body pass through it instead of pressing (after pressing through
             // its resistance, when it has one).
             let mut cutting_blades: u64 = 0;
@@ -847,8 +878,13 @@ impl World {
                 && let Some(cutter) = cutter.as_mut()
                 && cutter.blades
             {
-                cutting_blades =
-                    cutting_blade_mask(cutter, body, &self.tools, &self.previous_force);
+                cutting_blades = cutting_blade_mask(
+                    cutter,
+                    body,
+                    &mut broad.held,
+                    &self.tools,
+                    &self.previous_force,
+                );
             }
             clock.enter(Stage::Forces);
             kernel.edge_forces(body);
@@ -861,18 +897,26 @@ impl World {
                 }
             }
             // An explicit body with every node at the step is integrated in the force stage's node
-            // pass (the held nodes are the contact stage's); the others by their solver.
+            // pass; the held nodes keep their start velocity for the contact stage, which moves
+            // them. The others are integrated by their solver.
             let fused = match solver {
                 BodySolver::Symplectic => true,
                 BodySolver::Multirate(m) => m.fast.is_empty() && !m.rigid_substepped,
                 BodySolver::Implicit(_) => false,
             };
-            let pass = match (fused, systems.tool_contact) {
-                (false, _) => NodePass::Forces,
-                (true, true) => NodePass::IntegrateFree,
-                (true, false) => NodePass::IntegrateAll,
+            let hold = systems.tool_contact && fused;
+            if hold {
+                broad.held.save_velocities(&body.surface);
+            }
+            let pass = if fused {
+                NodePass::IntegrateAll
+            } else {
+                NodePass::Forces
             };
             kernel.node_pass(body, &gravity, dt, pass);
+            if hold {
+                broad.held.restore_velocities(&mut body.surface);
+            }
             clock.enter(Stage::Contact);
             if systems.tool_contact {
                 hold_contact_nodes(
@@ -881,6 +925,7 @@ impl World {
                     body.params.friction,
                     dt,
                     fused,
+                    &mut broad.held,
                 );
             }
             clock.enter(Stage::Integration);
@@ -913,6 +958,7 @@ impl World {
                     clock.enter(Stage::ToolCcd);
                     counters.tool_captures +=
                         capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
+                    broad.held.add_captured(&body.surface, &broad.nodes);
                 }
                 clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {

@@ -140,8 +140,11 @@ pub fn hold_contact_nodes(
     friction: f64,
     dt: f64,
     integrate_released: bool,
+    held: &mut HeldNodes,
 ) {
-    for i in 0..surface.tool_contact.len() {
+    held.refresh_if_stale(surface);
+    for k in 0..held.nodes.len() {
+        let i = held.nodes[k] as usize;
         let contact = surface.tool_contact[i];
         if contact.tool == NO_TOOL {
             continue;
@@ -241,6 +244,102 @@ pub fn hold_contact_nodes(
             friction_magnitude,
             sliding,
         );
+    }
+    held.nodes
+        .retain(|&i| surface.tool_contact[i as usize].tool != NO_TOOL);
+}
+
+/// The nodes a tool holds on one body, in index order: the contact stage goes through them instead
+/// of every node. Kept up to date by the stages that change contacts ([`HeldNodes::add_captured`],
+/// the hold's releases); swept again from the nodes' contact state after anything else may have
+/// changed it (a topology change, a grasp, a release) — [`HeldNodes::invalidate`].
+#[derive(Clone, Debug, Default)]
+pub struct HeldNodes {
+    nodes: Vec<u32>,
+    saved: Vec<Vec3>,
+    valid: bool,
+    version: u64,
+    count: usize,
+}
+
+impl HeldNodes {
+    /// Room for `nodes` held nodes (a body's node capacity: no allocation on the tick).
+    pub fn with_capacity(nodes: usize) -> Self {
+        Self {
+            nodes: Vec::with_capacity(nodes),
+            saved: Vec::with_capacity(nodes),
+            ..Self::default()
+        }
+    }
+
+    /// The held nodes, in index order (as of the last refresh).
+    pub fn nodes(&self) -> &[u32] {
+        &self.nodes
+    }
+
+    /// Forgets the list: the next refresh sweeps the nodes.
+    pub fn invalidate(&mut self) {
+        self.valid = false;
+    }
+
+    /// Sweeps the nodes again if the list may be stale: invalidated, or the surface changed
+    /// (topology version or node count, as `stamp` gives them).
+    pub fn refresh(&mut self, surface: &Surface, version: u64) {
+        let count = surface.tool_contact.len();
+        if self.valid && self.version == version && self.count == count {
+            return;
+        }
+        self.nodes.clear();
+        for (i, contact) in surface.tool_contact.iter().enumerate() {
+            if contact.tool != NO_TOOL {
+                self.nodes.push(i as u32);
+            }
+        }
+        self.valid = true;
+        self.version = version;
+        self.count = count;
+    }
+
+    /// Sweeps again if the node count changed since the last refresh (a caller without the body's
+    /// version: the hold keeps to what its caller refreshed).
+    fn refresh_if_stale(&mut self, surface: &Surface) {
+        if !self.valid || self.count != surface.tool_contact.len() {
+            let version = self.version;
+            self.valid = false;
+            self.refresh(surface, version);
+        }
+    }
+
+    /// Adds the `candidates` of a capture that a tool now holds.
+    pub fn add_captured(&mut self, surface: &Surface, candidates: &[u32]) {
+        let before = self.nodes.len();
+        for &i in candidates {
+            if surface.tool_contact[i as usize].tool != NO_TOOL {
+                self.nodes.push(i);
+            }
+        }
+        if self.nodes.len() > before {
+            self.nodes.sort_unstable();
+            self.nodes.dedup();
+        }
+    }
+
+    /// Keeps the velocities of the held nodes (before a pass that integrates every node).
+    pub fn save_velocities(&mut self, surface: &Surface) {
+        self.saved.clear();
+        self.saved.extend(
+            self.nodes
+                .iter()
+                .map(|&i| surface.velocity_in_world[i as usize]),
+        );
+    }
+
+    /// Puts back the velocities [`HeldNodes::save_velocities`] kept: the held nodes start the
+    /// contact stage as they started the tick.
+    pub fn restore_velocities(&self, surface: &mut Surface) {
+        for (&i, v) in self.nodes.iter().zip(&self.saved) {
+            surface.velocity_in_world[i as usize] = *v;
+        }
     }
 }
 
