@@ -403,7 +403,8 @@ pub fn capture_broad_phase(surface: &Surface, tool: &Tool, out: &mut Vec<u32>) {
     out.clear();
     let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
     for i in 0..x0.len() {
-        if surface.tool_contact[i].tool == NO_TOOL && sweep.overlaps_segment(&x0[i], &x1[i]) {
+        // The box first: the contact state is read only for the nodes near the tool.
+        if sweep.overlaps_segment(&x0[i], &x1[i]) && surface.tool_contact[i].tool == NO_TOOL {
             out.push(i as u32);
         }
     }
@@ -593,7 +594,9 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f
         reach.inflate(margin);
         for i in 0..surface.next_position_in_world.len() {
             let p = surface.next_position_in_world[i];
-            if surface.tool_contact[i].grasp.is_some() || !reach.overlaps_segment(&p, &p) {
+            // The box first: it reads the positions the loop streams through, the contact state
+            // (a wide record per node) only for the few nodes near the tool.
+            if !reach.overlaps_segment(&p, &p) || surface.tool_contact[i].grasp.is_some() {
                 continue;
             }
             let (distance, part) = tool.signed_distance(&p);

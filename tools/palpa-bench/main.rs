@@ -1383,10 +1383,6 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
         "palpa_ns_per_node": best[0] * 1e3 / nodes as f64,
         "largest_gap_m": gap,
     });
-    std::fs::write(
-        args.out.join("reference.json"),
-        serde_json::to_string_pretty(&result)?,
-    )?;
     let md = format!(
         "# palpa-bench reference\n\n`{}` — {} — {}\n\n{nodes} nodes, {} edges, no contact, {steps} steps a run, best of 3:\n\n\
          | | µs per step | ns per node |\n| --- | --- | --- |\n\
@@ -1402,7 +1398,59 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
         best[1],
         best[1] * 1e3 / nodes as f64,
     );
+    let scenes = shipped_scene_ticks(if args.quick { 200 } else { 2000 })?;
+    let mut md = md;
+    md += "\nEvery shipped scene (`scenes/*.toml`, tools as the scene drives them, IPC tools idle), mean tick over the run after 100 ticks:\n\n| scene | nodes | mean tick (µs) | ns per node |\n| --- | --- | --- | --- |\n";
+    for (name, nodes, mean) in &scenes {
+        md += &format!(
+            "| {name} | {nodes} | {mean:.1} | {:.1} |\n",
+            mean * 1e3 / *nodes as f64
+        );
+    }
+    let mut result = result;
+    result["scenes"] = json!(
+        scenes
+            .iter()
+            .map(|(name, nodes, mean)| json!({"scene": name, "nodes": nodes, "mean_tick_us": mean, "ns_per_node": mean * 1e3 / *nodes as f64}))
+            .collect::<Vec<_>>()
+    );
+    std::fs::write(
+        args.out.join("reference.json"),
+        serde_json::to_string_pretty(&result)?,
+    )?;
     std::fs::write(args.out.join("reference.md"), &md)?;
     println!("{md}");
     Ok(())
+}
+
+/// Mean tick (µs) of every scene in `scenes/` (sorted by name; the stress scenes left out), over
+/// `ticks` ticks after 100, with the node count at the end: (file name, nodes, µs).
+fn shipped_scene_ticks(ticks: u64) -> Result<Vec<(String, usize, f64)>> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    let mut rows = Vec::new();
+    for path in paths {
+        let scene = palpa::scene::load_scene(&path).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let mut world = World::from_scene(&scene);
+        for _ in 0..100 {
+            world.step();
+        }
+        let start = Instant::now();
+        for _ in 0..ticks {
+            world.step();
+        }
+        let mean = start.elapsed().as_secs_f64() * 1e6 / ticks as f64;
+        let nodes = world.bodies.iter().map(|b| b.node_count()).sum::<usize>();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        rows.push((name, nodes, mean));
+    }
+    Ok(rows)
 }

@@ -5,7 +5,7 @@
 //! `{"file":…,"kind":"vertex-face"|"edge-edge","queries":N,"positives":N,"false_negatives":N,"false_positives":N,"ns_per_query":X,"mean_ns":X,"p999_ns":X,"max_ns":X}`
 //!
 //! and, when more than one file was read, a last line over all of them with `"file":"(all)"` and
-//! `"kind":"all"` (its `ns_per_query` the mean over all queries).
+//! `"kind":"all"` (its `ns_per_query` the files' means weighted by their queries).
 //!
 //! A directory is walked recursively in sorted order and its `*.csv` files are read; a file named on
 //! the command line is read whatever its name. The kind of a file's queries is the name of the folder
@@ -72,6 +72,7 @@ fn run(args: &[String]) -> Result<(), String> {
     let several = files.len() > 1;
     let mut all = Report::default();
     let mut all_times = Vec::new();
+    let mut bulk_ns = 0.0;
     for (kind, path) in files {
         let text = std::fs::read_to_string(&path)
             .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
@@ -79,13 +80,14 @@ fn run(args: &[String]) -> Result<(), String> {
         let (report, times) = evaluate(kind, &queries, &settings);
         let line = report.to_json(&path.display().to_string(), kind.name(), &times);
         all.add(&report);
+        bulk_ns += report.ns_per_query * report.queries as f64;
         all_times.extend_from_slice(&times);
         if !write_line(&mut out, &line)? {
             return Ok(());
         }
     }
     if several {
-        all.ns_per_query = mean(&all_times);
+        all.ns_per_query = bulk_ns / all.queries.max(1) as f64;
         let line = all.to_json("(all)", "all", &all_times);
         write_line(&mut out, &line)?;
     }
