@@ -5,14 +5,21 @@
 //! State is laid out as structure of arrays ([`Surface`], [`Edges`]) indexed by node and edge number.
 //! Every buffer the step writes is sized when the body is built, so stepping never allocates.
 
+mod contact_state;
+pub mod mesh;
 mod rigid;
+pub mod settings;
 
+pub use contact_state::{JawHold, NO_TOOL, ToolContact};
 pub use rigid::RigidComponent;
 
 use crate::Vec3;
-use crate::contact::tool::ToolContact;
-use crate::scene::mesh::SurfaceMesh;
+use mesh::SurfaceMesh;
 use nalgebra::UnitQuaternion;
+use settings::{
+    CuttingSettings, Integrator, POOL_NODES, PlasticitySettings, SubdivisionSettings,
+    TearingSettings,
+};
 
 /// The mechanical parameters of a body, SI units (see the README's scene format).
 #[derive(Clone, Debug, PartialEq)]
@@ -38,32 +45,32 @@ pub struct BodyParams {
     /// abdominal wall); the surface still deforms around it.
     pub fixed: bool,
     /// This body's integrator, when it differs from the world's.
-    pub integrator: Option<crate::dynamics::Integrator>,
+    pub integrator: Option<Integrator>,
     /// Adaptive subdivision at tool contact, when on.
-    pub subdivision: Option<crate::topology::SubdivisionSettings>,
+    pub subdivision: Option<SubdivisionSettings>,
     /// Cutting by blades, when on.
-    pub cutting: Option<crate::topology::CuttingSettings>,
+    pub cutting: Option<CuttingSettings>,
     /// Plastic flow of the homologues, when on.
-    pub plasticity: Option<crate::dynamics::plasticity::PlasticitySettings>,
+    pub plasticity: Option<PlasticitySettings>,
     /// Tearing of overstretched springs, when on.
-    pub tearing: Option<crate::topology::TearingSettings>,
+    pub tearing: Option<TearingSettings>,
 }
 
 impl BodyParams {
     /// The settings of the cutter that changes this body's topology (cutting, tearing or both: the
     /// pools are the larger of the two), `None` when neither is on.
-    pub fn topology_cutter(&self) -> Option<crate::topology::CuttingSettings> {
+    pub fn topology_cutter(&self) -> Option<CuttingSettings> {
         match (self.cutting, self.tearing) {
-            (Some(c), Some(t)) => Some(crate::topology::CuttingSettings {
+            (Some(c), Some(t)) => Some(CuttingSettings {
                 max_nodes: c.max_nodes.max(t.max_nodes),
                 max_pieces: c.max_pieces.max(t.max_pieces),
                 ..c
             }),
             (Some(c), None) => Some(c),
-            (None, Some(t)) => Some(crate::topology::CuttingSettings {
+            (None, Some(t)) => Some(CuttingSettings {
                 max_nodes: t.max_nodes,
                 max_pieces: t.max_pieces,
-                ..crate::topology::CuttingSettings::default()
+                ..CuttingSettings::default()
             }),
             (None, None) => None,
         }
@@ -413,7 +420,7 @@ impl Body {
             rigid,
             params: params.clone(),
             topology_version: 0,
-            boundary_edges: crate::topology::cut::count_boundary_edges(&mesh.triangles),
+            boundary_edges: count_boundary_edges(&mesh.triangles),
             // No room reserved yet: the mesh may grow, allocating (tests, tools); a world reserves.
             limits: Limits {
                 nodes: usize::MAX,
@@ -428,7 +435,7 @@ impl Body {
     /// Nodes of room the body's topology changes may use: the subdivision pool and the cutting pool.
     pub fn room_nodes(&self) -> usize {
         let subdivision = if self.params.subdivision.is_some() {
-            crate::topology::POOL_NODES
+            POOL_NODES
         } else {
             0
         };
@@ -582,4 +589,27 @@ impl Body {
             .all(|v| v.iter().all(|x| x.is_finite()))
             && self.rigid.is_finite()
     }
+}
+
+/// Surface edges used by exactly one triangle (a full count, for checks; the body keeps its own).
+pub fn count_boundary_edges(triangles: &[[u32; 3]]) -> u32 {
+    let mut keys: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    keys.sort_unstable();
+    let mut count = 0;
+    let mut k = 0;
+    while k < keys.len() {
+        let mut j = k + 1;
+        while j < keys.len() && keys[j] == keys[k] {
+            j += 1;
+        }
+        if j - k == 1 {
+            count += 1;
+        }
+        k = j;
+    }
+    count
 }

@@ -20,61 +20,17 @@
 
 use crate::Vec3;
 use crate::body::Surface;
+pub use crate::body::{JawHold, NO_TOOL, ToolContact};
 use crate::collision::tool::{
     Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule,
 };
 use crate::tool::{Tool, ToolPose};
-
-/// No tool: the node is free.
-pub const NO_TOOL: u32 = u32::MAX;
 
 /// How far inside a tool a node placed on its surface may sit through rounding alone (m).
 pub const SURFACE_ROUNDING: f64 = 1e-12;
 
 /// Distance within which continuous detection reports contact (m).
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
-
-/// The contact state of one surface node.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ToolContact {
-    /// Tool index, or [`NO_TOOL`].
-    pub tool: u32,
-    /// Capsule part of that tool.
-    pub part: u32,
-    /// Where the node sits on the tool (m, tool frame; for a grasped node, where it sat when grasped).
-    pub point_in_tool: Vec3,
-    /// Set while a grasper holds the node in the frame of one of its jaws.
-    pub grasp: Option<JawHold>,
-}
-
-/// A node held in a jaw's frame: the jaw (+1 for part 0, −1 for part 1, 0 between them) and the
-/// half opening when it was grasped (rad).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JawHold {
-    /// +1 for jaw 0, −1 for jaw 1, 0 for the frame between them.
-    pub side: f64,
-    /// Half the jaw opening when the node was grasped (rad).
-    pub half_opening: f64,
-}
-
-impl JawHold {
-    /// A hold on part `part` of a grasper (0 or 1: its jaws) whose half opening is `half_opening`.
-    pub fn on_part(part: usize, half_opening: f64) -> Self {
-        Self {
-            side: if part == 0 { 1.0 } else { -1.0 },
-            half_opening,
-        }
-    }
-
-    /// Where a node grasped at `point_in_tool` is, in the tool frame, for the half opening `half`
-    /// now: its jaw turned about the tool's y axis since the grasp.
-    pub fn point_now(&self, point_in_tool: &Vec3, half: f64) -> Vec3 {
-        let angle = self.side * (half - self.half_opening);
-        let (s, c) = (crate::math::sin(angle), crate::math::cos(angle));
-        let p = point_in_tool;
-        Vec3::new(c * p.x + s * p.z, p.y, -s * p.x + c * p.z)
-    }
-}
 
 /// Whether `point_in_tool` (tool frame), touching jaw `part` (0 or 1) of a grasper whose half
 /// opening is `half` (rad), lies between the jaws: along that jaw between its hinge and its tip,

@@ -12,35 +12,7 @@
 
 use crate::Vec3;
 use crate::body::Body;
-
-/// A body's plasticity (scene key `plasticity = { yield, creep, max }`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlasticitySettings {
-    /// Link stretch below which nothing flows (m).
-    pub yield_stretch: f64,
-    /// Rate of flow per metre of excess stretch (1/s).
-    pub creep: f64,
-    /// Farthest a homologue may flow from its original place (m).
-    pub max: f64,
-}
-
-impl Default for PlasticitySettings {
-    fn default() -> Self {
-        Self {
-            yield_stretch: 2e-3,
-            creep: 1.0,
-            max: 1e-2,
-        }
-    }
-}
-
-impl PlasticitySettings {
-    /// Fraction of the excess a tick of `dt` seconds removes: 1 − exp(−creep Δt), the same bits on
-    /// every machine.
-    pub fn tick_fraction(&self, dt: f64) -> f64 {
-        -libm::expm1(-self.creep * dt)
-    }
-}
+pub use crate::body::settings::PlasticitySettings;
 
 /// Lets the homologues of `body` flow for one tick (after the positions and the rigid component are
 /// committed); `fraction` is [`PlasticitySettings::tick_fraction`]. Returns how many homologues

@@ -34,43 +34,10 @@ use super::refine::min_angle_deg;
 use super::transect::Transector;
 use super::{find_edge, mass_fractions};
 use crate::Vec3;
+pub use crate::body::count_boundary_edges;
+pub use crate::body::settings::CuttingSettings;
 use crate::body::{Body, NewNode};
 use crate::collision::tool::{Aabb, closest_point_on_triangle};
-
-/// How a body is cut (scene key `cutting`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CuttingSettings {
-    /// Force the blade must press the tissue with before it cuts through (N); 0: the blade cuts every
-    /// edge it crosses and never presses.
-    pub resistance: f64,
-    /// Smallest angle a triangle the cut creates may have (degrees), bounded by half the original
-    /// mesh's smallest angle.
-    pub min_angle_deg: f64,
-    /// Pre-strain of the surface springs (0 ≤ prestress < 0.5): their rest lengths are the mesh's
-    /// times (1 − prestress), so the intact surface is under tension and the lips of a cut draw apart.
-    pub prestress: f64,
-    /// Nodes the cuts on this body may add in all (splits and copies); the pool reserved up front.
-    pub max_nodes: usize,
-    /// Least distance within which a node counts as on the blade's path (m); the tolerance is the
-    /// larger of this and a quarter of the local edge length.
-    pub tolerance: f64,
-    /// New bodies the transections of this body (and of its pieces) may create in all: the spare
-    /// bodies a world reserves up front. A cut that would need more leaves the parts in one body.
-    pub max_pieces: usize,
-}
-
-impl Default for CuttingSettings {
-    fn default() -> Self {
-        Self {
-            resistance: 0.0,
-            min_angle_deg: 15.0,
-            prestress: 0.0,
-            max_nodes: 2048,
-            tolerance: 5e-4,
-            max_pieces: 4,
-        }
-    }
-}
 
 /// Counters of a body's cuts since the start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -295,29 +262,6 @@ pub fn smallest_angle_deg(body: &Body) -> f64 {
         .iter()
         .map(|t| min_angle_deg(&t.map(|v| h[v as usize])))
         .fold(180.0, f64::min)
-}
-
-/// Surface edges used by exactly one triangle (a full count, for checks; the body keeps its own).
-pub fn count_boundary_edges(triangles: &[[u32; 3]]) -> u32 {
-    let mut keys: Vec<(u32, u32)> = triangles
-        .iter()
-        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-        .map(|(a, b)| (a.min(b), a.max(b)))
-        .collect();
-    keys.sort_unstable();
-    let mut count = 0;
-    let mut k = 0;
-    while k < keys.len() {
-        let mut j = k + 1;
-        while j < keys.len() && keys[j] == keys[k] {
-            j += 1;
-        }
-        if j - k == 1 {
-            count += 1;
-        }
-        k = j;
-    }
-    count
 }
 
 impl Cutter {

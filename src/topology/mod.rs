@@ -29,81 +29,12 @@ pub mod refine;
 pub mod tear;
 pub mod transect;
 
+pub use crate::body::settings::{POOL_NODES, SpringRule, SubdivisionSettings};
 pub use cut::{Cutter, CuttingSettings};
 pub use tear::{Tearer, TearingSettings};
 
 use crate::Vec3;
 use crate::body::{Body, NewNode};
-
-/// Insertions a body can hold at once (its reserved pool).
-pub const POOL_NODES: usize = 256;
-
-/// How the stiffness of new edges and links is chosen.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum SpringRule {
-    /// The paper's first rule: the mean of the two triangle edges meeting at the corner, weighted by
-    /// how close each one's direction is to the new edge's; links the barycentric mean.
-    Angle,
-    /// The paper's second rule: keep k·L0 of the triangle's edges (mean), so shorter edges are
-    /// stiffer; links the barycentric mean.
-    ConstantKl,
-    /// Ours: the refined patch keeps the coarse patch's membrane modulus (k = E Σ A / L² on every edge
-    /// the split touches) and elastic foundation per unit area (links split by area handed over).
-    #[default]
-    Area,
-}
-
-impl SpringRule {
-    /// The scene name.
-    pub fn name(self) -> &'static str {
-        match self {
-            SpringRule::Angle => "angle",
-            SpringRule::ConstantKl => "constant_kl",
-            SpringRule::Area => "area",
-        }
-    }
-
-    /// Parses a scene name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "angle" => Some(SpringRule::Angle),
-            "constant_kl" => Some(SpringRule::ConstantKl),
-            "area" => Some(SpringRule::Area),
-            _ => None,
-        }
-    }
-}
-
-/// How a body refines at contact (scene key `subdivision`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SubdivisionSettings {
-    /// How new edges and links get their stiffness.
-    pub rule: SpringRule,
-    /// Deepest refinement: a new node's depth is one more than the deepest of its corners.
-    pub max_depth: u8,
-    /// Shortest rest edge a refinement may create (m).
-    pub min_edge: f64,
-    /// Seconds without contact after which a refinement is undone.
-    pub coarsen_after_s: f64,
-    /// How far the surface between held nodes may cut into a tool before a node is inserted (m).
-    pub tolerance: f64,
-    /// Longest rest edge of a triangle at a held node (m); `None`: 1.6 times the radius of the tool
-    /// part holding it.
-    pub zone_edge: Option<f64>,
-}
-
-impl Default for SubdivisionSettings {
-    fn default() -> Self {
-        Self {
-            rule: SpringRule::default(),
-            max_depth: 4,
-            min_edge: 0.001,
-            coarsen_after_s: 0.5,
-            tolerance: 1e-4,
-            zone_edge: None,
-        }
-    }
-}
 
 /// The paper's mass split: for weights `w` (summing to 1) and corner masses `m`, the fractions
 /// aₖ = r wₖ each corner gives to the new node.

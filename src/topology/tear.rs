@@ -21,34 +21,7 @@
 
 use super::cut::{CutStep, Cutter};
 use crate::body::Body;
-
-/// How a body tears (scene key `tearing`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TearingSettings {
-    /// Relative stretch past which a surface spring breaks: (length − rest) / rest.
-    pub strain: f64,
-    /// Ticks in a row a spring must stay past `strain` before it breaks (1: the first tick).
-    pub ticks: u32,
-    /// Most springs that break in one tick (each may take one more with it, see the module).
-    pub max_per_tick: usize,
-    /// Nodes the tears may add in all (node copies); the pool reserved up front (shared with
-    /// cutting's when both are on: the larger).
-    pub max_nodes: usize,
-    /// New bodies the tears may separate in all (spare bodies reserved up front).
-    pub max_pieces: usize,
-}
-
-impl Default for TearingSettings {
-    fn default() -> Self {
-        Self {
-            strain: 0.5,
-            ticks: 1,
-            max_per_tick: 4,
-            max_nodes: 2048,
-            max_pieces: 8,
-        }
-    }
-}
+pub use crate::body::settings::TearingSettings;
 
 /// Counters of a body's tears since the start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
