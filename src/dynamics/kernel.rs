@@ -34,15 +34,31 @@ pub struct EdgeBatches {
     edge: Vec<[u32; LANES]>,
     // Colouring scratch: the ends each batch holds, and the batches with room, oldest first.
     ends: Vec<[u32; 2 * LANES]>,
-    open: Vec<u32>,
+    /// Per node, the open slots (bits) whose batch holds it.
+    in_open: Vec<u16>,
 }
 
-/// Batches with room the colouring keeps looking into (more pack tighter and cost more).
+/// Batches with room the colouring keeps looking into (more pack tighter and cost more; at most 16,
+/// the bits of a node's slot mask).
 pub const OPEN_BATCHES: usize = 16;
 
+/// The slot of least age among the bits of `slots`.
+fn oldest(slots: u16, age: &[u64; OPEN_BATCHES]) -> usize {
+    let mut best = usize::MAX;
+    let mut bits = slots;
+    while bits != 0 {
+        let slot = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        if best == usize::MAX || age[slot] < age[best] {
+            best = slot;
+        }
+    }
+    best
+}
+
 impl EdgeBatches {
-    /// Scratch for a body of at most `edges` edges.
-    pub fn with_capacity(edges: usize) -> Self {
+    /// Scratch for a body of at most `nodes` nodes and `edges` edges.
+    pub fn with_capacity(nodes: usize, edges: usize) -> Self {
         Self {
             ends_of: Vec::with_capacity(edges),
             rest: Vec::with_capacity(edges),
@@ -50,7 +66,7 @@ impl EdgeBatches {
             uniform: None,
             edge: Vec::with_capacity(edges),
             ends: Vec::with_capacity(edges),
-            open: Vec::with_capacity(OPEN_BATCHES),
+            in_open: Vec::with_capacity(nodes),
         }
     }
 
@@ -88,42 +104,54 @@ impl EdgeBatches {
     /// batch. Linear in the edges; allocation-free within the capacity given.
     pub fn rebuild(&mut self, edges: &Edges, nodes: usize) {
         let count = edges.len();
-        self.open.clear();
         self.edge.clear();
         self.ends.clear();
+        self.in_open.clear();
+        self.in_open.resize(nodes, 0);
+        // The open batches sit in 16 slots: each slot's batch and age (creation order), and a mask
+        // of the slots in use; a node's mask says which open slots hold it, so that the slots that
+        // can take an edge are found with two loads and a few bit operations.
+        let mut slot_batch = [0usize; OPEN_BATCHES];
+        let mut slot_age = [0u64; OPEN_BATCHES];
+        let mut open: u16 = 0;
+        let mut age = 0u64;
         for k in 0..count {
             let (a, b) = (edges.a[k], edges.b[k]);
             if a as usize >= nodes || b as usize >= nodes || a == b {
                 continue;
             }
-            let ends = &self.ends;
-            let fit = self.open.iter().position(|&slot| {
-                let held = &ends[slot as usize];
-                !held.contains(&a) && !held.contains(&b)
-            });
-            let position = match fit {
-                Some(p) => p,
-                None => {
-                    if self.open.len() == OPEN_BATCHES {
-                        // The oldest open batch stays partly empty.
-                        self.open.remove(0);
-                    }
-                    self.edge.push([u32::MAX; LANES]);
-                    self.ends.push([u32::MAX; 2 * LANES]);
-                    self.open.push(self.edge.len() as u32 - 1);
-                    self.open.len() - 1
+            let fitting = open & !(self.in_open[a as usize] | self.in_open[b as usize]);
+            let slot = if fitting != 0 {
+                oldest(fitting, &slot_age)
+            } else {
+                if open == u16::MAX {
+                    // The oldest open batch stays partly empty.
+                    let evicted = oldest(open, &slot_age);
+                    self.close(slot_batch[evicted], evicted);
+                    open &= !(1 << evicted);
                 }
+                let free = (!open).trailing_zeros() as usize;
+                self.edge.push([u32::MAX; LANES]);
+                self.ends.push([u32::MAX; 2 * LANES]);
+                slot_batch[free] = self.edge.len() - 1;
+                slot_age[free] = age;
+                age += 1;
+                open |= 1 << free;
+                free
             };
-            let slot = self.open[position] as usize;
-            let lane = self.edge[slot]
+            let batch = slot_batch[slot];
+            let lane = self.edge[batch]
                 .iter()
                 .position(|&e| e == u32::MAX)
                 .unwrap_or(0);
-            self.edge[slot][lane] = k as u32;
-            self.ends[slot][2 * lane] = a;
-            self.ends[slot][2 * lane + 1] = b;
+            self.edge[batch][lane] = k as u32;
+            self.ends[batch][2 * lane] = a;
+            self.ends[batch][2 * lane + 1] = b;
+            self.in_open[a as usize] |= 1 << slot;
+            self.in_open[b as usize] |= 1 << slot;
             if lane + 1 == LANES {
-                self.open.remove(position);
+                self.close(batch, slot);
+                open &= !(1 << slot);
             }
         }
         self.ends_of.clear();
@@ -154,6 +182,15 @@ impl EdgeBatches {
             self.rest.push(rest);
             if self.uniform.is_none() {
                 self.stiffness_damping.push(stiffness_damping);
+            }
+        }
+    }
+
+    /// Takes the nodes of `batch` out of open slot `slot`.
+    fn close(&mut self, batch: usize, slot: usize) {
+        for &node in &self.ends[batch] {
+            if node != u32::MAX {
+                self.in_open[node as usize] &= !(1 << slot);
             }
         }
     }
@@ -206,7 +243,7 @@ impl ForceKernel {
             (body.limits.nodes, body.limits.edges)
         };
         Self {
-            batches: EdgeBatches::with_capacity(edges),
+            batches: EdgeBatches::with_capacity(nodes, edges),
             force: Vec::with_capacity(nodes),
             built_for: None,
             simd: true,

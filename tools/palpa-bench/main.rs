@@ -1362,6 +1362,20 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
         }
     }
     let ratio = best[0] / best[1];
+    // The cost of rebuilding the edge batches (what a topology change of this body costs the force
+    // stage): least of 20.
+    let rebuild_us = {
+        let body = &world.bodies[0];
+        let mut kernel = palpa::dynamics::kernel::ForceKernel::new(body);
+        let mut least = f64::INFINITY;
+        for _ in 0..20 {
+            kernel.invalidate();
+            let start = Instant::now();
+            kernel.refresh(body);
+            least = least.min(start.elapsed().as_secs_f64() * 1e6);
+        }
+        least
+    };
     let result = json!({
         "command": format!(
             "palpa-bench reference --subdivisions {} --integrator {}{} --out {}",
@@ -1382,12 +1396,14 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
         "ratio": ratio,
         "palpa_ns_per_node": best[0] * 1e3 / nodes as f64,
         "largest_gap_m": gap,
+        "batch_rebuild_us": rebuild_us,
     });
     let md = format!(
         "# palpa-bench reference\n\n`{}` — {} — {}\n\n{nodes} nodes, {} edges, no contact, {steps} steps a run, best of 3:\n\n\
          | | µs per step | ns per node |\n| --- | --- | --- |\n\
          | palpa ({}) | {:.1} | {:.1} |\n| plain reference | {:.1} | {:.1} |\n\n\
-         Ratio palpa / reference: **{ratio:.3}** (goal ≤ 0.25). Largest node gap after 200 steps: {gap:.2e} m.\n",
+         Ratio palpa / reference: **{ratio:.3}** (goal ≤ 0.25). Largest node gap after 200 steps: {gap:.2e} m. \
+         Rebuilding the edge batches (a topology change): {rebuild_us:.1} µs.\n",
         result["command"].as_str().unwrap_or(""),
         result["date"].as_str().unwrap_or(""),
         result["machine"].as_str().unwrap_or(""),
