@@ -124,27 +124,45 @@ fn run_query(kind: Kind, q: &Query, settings: &CcdSettings) -> Option<CcdHit> {
     }
 }
 
-/// (queries, positives, false negatives, false positives) of one file with the default settings.
-fn counts(path: &Path) -> (usize, usize, usize, usize) {
+/// (queries, positives, false negatives, false positives, most boxes a hit took) of one file with
+/// the default settings.
+fn counts(path: &Path) -> (usize, usize, usize, usize, u32) {
     let kind = kind_of(path);
     let settings = CcdSettings::default();
     let (mut queries, mut positives, mut false_negatives, mut false_positives) = (0, 0, 0, 0);
+    let mut most_boxes = 0;
     for (i, q) in read_queries(path).iter().enumerate() {
         let hit = run_query(kind, q, &settings);
         if let Some(h) = hit {
             assert!(
-                (0.0..=1.0).contains(&h.time_of_impact),
+                (0.0..=1.0).contains(&h.time_of_impact) && !h.exhausted,
                 "{} query {i}: {h:?}",
                 path.display()
             );
+            most_boxes = most_boxes.max(h.boxes);
         }
         queries += 1;
         positives += usize::from(q.truth);
         false_negatives += usize::from(q.truth && hit.is_none());
         false_positives += usize::from(!q.truth && hit.is_some());
     }
-    (queries, positives, false_negatives, false_positives)
+    (
+        queries,
+        positives,
+        false_negatives,
+        false_positives,
+        most_boxes,
+    )
 }
+
+/// False positives over the whole shared set when issue 16 asked for a bounded worst case ("no
+/// more than today"): the benchmark's near misses within about 1e-17 m.
+const FALSE_POSITIVES_BEFORE: usize = 77;
+
+/// The most boxes a hit of the shared set may take: 1 111 before the witness, the coplanar rows
+/// and the time cuts at coordinate fronts (a pair of edges crossing in a common plane); about 200
+/// with them.
+const MOST_BOXES: u32 = 300;
 
 #[test]
 fn no_false_negative_in_any_sample_query_file() {
@@ -154,8 +172,10 @@ fn no_false_negative_in_any_sample_query_file() {
     assert!(!files.is_empty(), "no *.csv under {}", dir.display());
     let mut missed = Vec::new();
     let (mut all_queries, mut all_negatives, mut all_false_positives) = (0, 0, 0);
+    let mut most_boxes = 0;
     for path in &files {
-        let (queries, positives, false_negatives, false_positives) = counts(path);
+        let (queries, positives, false_negatives, false_positives, boxes) = counts(path);
+        most_boxes = most_boxes.max(boxes);
         let name = path.strip_prefix(&dir).unwrap_or(path).display();
         println!(
             "{name}: {queries} queries, {positives} positives, {false_negatives} false negatives, \
@@ -169,9 +189,15 @@ fn no_false_negative_in_any_sample_query_file() {
         all_false_positives += false_positives;
     }
     println!(
-        "all: {all_queries} queries, {all_false_positives} false positives out of {all_negatives} negatives"
+        "all: {all_queries} queries, {all_false_positives} false positives out of {all_negatives} \
+         negatives, at most {most_boxes} boxes for a hit"
     );
     assert!(missed.is_empty(), "false negatives: {missed:?}");
+    assert!(
+        all_false_positives <= FALSE_POSITIVES_BEFORE,
+        "{all_false_positives} false positives, {FALSE_POSITIVES_BEFORE} before"
+    );
+    assert!(most_boxes <= MOST_BOXES, "a hit took {most_boxes} boxes");
 }
 
 fn palpa_ccd(args: &[&Path]) -> Output {
@@ -210,7 +236,7 @@ fn binary_reports_one_json_line_for_a_file() {
             "queries"
         ]
     );
-    let (queries, positives, false_negatives, false_positives) = counts(&file);
+    let (queries, positives, false_negatives, false_positives, _) = counts(&file);
     assert_eq!(queries, 20);
     assert_eq!(json["file"], file.display().to_string());
     assert_eq!(json["kind"], "edge-edge");
@@ -350,4 +376,35 @@ fn binary_refuses_bad_input_naming_file_and_line() {
         assert!(stderr.contains(&path.display().to_string()), "{stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
+}
+
+#[test]
+fn binary_lists_every_query_when_asked() {
+    let dir = scratch("per_query");
+    let folder = dir.join("vertex-face");
+    std::fs::create_dir_all(&folder).expect("create folder");
+    let file = folder.join("two.csv");
+    std::fs::write(&file, query_rows(1) + &query_rows(1)).expect("write query file");
+    let flag = Path::new("--queries");
+    let output = palpa_ccd(&[flag, &file]);
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    // Two query lines, then the file's line.
+    assert_eq!(lines.len(), 3, "{stdout}");
+    for (index, line) in lines[..2].iter().enumerate() {
+        assert_eq!(line["query"], index);
+        assert_eq!(line["truth"], true);
+        assert_eq!(line["hit"], true);
+        assert_eq!(line["exhausted"], false);
+        assert!(line["boxes"].as_u64().expect("a count") >= 1);
+        // The point crosses the face at t = 1/2: a lower bound within the tolerance of it.
+        let toi = line["time_of_impact"].as_f64().expect("a number");
+        assert!((0.49..=0.5).contains(&toi), "{toi}");
+        assert!(line["ns"].as_f64().expect("a number") > 0.0);
+    }
+    assert_eq!(lines[2]["queries"], 2);
 }

@@ -16,13 +16,22 @@
 //! corner values are farther from 0 than a rigorous bound of their rounding error; otherwise it is
 //! split in two, and the pending box that starts earliest in time is examined next, until one box has
 //! F within the tolerance of 0 over all of it (a hit at its start time) or none is left (no contact).
-//! Two additions to the paper's scheme cut the boxes examined several-fold on degenerate queries: the
-//! same exclusion test on three combinations r·F of the coordinates chosen per box from the Jacobian
-//! of F (`ContactFunction::rejected_along_jacobian_rows` below), and halving time first in a box
-//! whose start face provably has no contact.
+//! Additions to the paper's scheme cut the boxes examined several-fold on degenerate queries:
+//! * the same exclusion test on five combinations r·F of the coordinates chosen per box from the
+//!   Jacobian of F (`ContactFunction::rejected_along_jacobian_rows` below), two of which still
+//!   work when the motion stays in one plane;
+//! * a *witness*: at the start time of a box that is not thrown away, the (u, v) where |F| is least
+//!   is found in floating point and F is checked there with the rigorous bound; within a quarter of
+//!   the tolerance, the box is a hit at its start time, with no need to split u and v down to the
+//!   tolerance (`ContactFunction::witness_at`). A near miss that rounding can still resolve is not
+//!   taken for a witness;
+//! * time intervals with float ends, cut where a coordinate that provably has no zero on the box's
+//!   start face can first reach zero (F is affine in t at each (u, v) corner), instead of halved
+//!   level after level towards that front.
 //!
-//! Why no contact is ever missed: the boxes are dyadic (k / 2^level), so their corners are exact
-//! floats and two halves cover their parent exactly; the only roundings are in the corner values,
+//! Why no contact is ever missed: the u and v intervals are dyadic (k / 2^level) and the time
+//! intervals' ends are floats, so the corners are exact floats and two parts of a box share their
+//! cut, covering their parent exactly; the only roundings are in the corner values,
 //! and they are bounded from above (`ContactFunction::new` below derives the bound); so a box is
 //! thrown away only when the exact F has no zero in it. Running out of work (`max_boxes`, or the
 //! fixed queue filling up) never gives `None`: it reports a hit at the earliest time not yet
@@ -64,9 +73,8 @@ pub struct CcdSettings {
 
 impl Default for CcdSettings {
     /// 1 µm and 10 000 boxes. On the public benchmark's hand-made queries (coordinates of order 1)
-    /// the false positives are the same for any tolerance from 1e-4 down to 1e-14 (they are
-    /// separations below what f64 resolves), a contact takes about 100–200 boxes (at most about
-    /// 1 100), and no query comes near the box limit, which bounds a query to about 1 ms.
+    /// the false positives are separations below what f64 resolves, a query takes at most about
+    /// 200 boxes, and none comes near the box limit, which bounds a query to about 1–2 ms.
     fn default() -> Self {
         Self {
             tolerance: 1e-6,
@@ -206,6 +214,11 @@ const LARGE_QUEUE: usize = 1024;
 /// accepted however large the coordinates are (otherwise the search could only end by exhaustion).
 const TOLERANCE_FLOOR_IN_ERRORS: f64 = 16.0;
 
+/// A witness (a point where F is checked to be within the tolerance, see
+/// [`ContactFunction::witness_at`]) must be within this fraction of the tolerance: a quarter, so
+/// that a witness found at the start of a box still leaves room for the time the box spans.
+const WITNESS_SCALE: f64 = 0.25;
+
 /// Above this sum of magnitudes the corner values could overflow: such a query is not searched.
 const LARGEST_MAGNITUDE: f64 = 1e300;
 
@@ -244,31 +257,84 @@ impl Dyadic {
     }
 }
 
-/// A box of the parameter domain: intervals of t, u and v, in that order.
-type ParamBox = [Dyadic; 3];
+/// A box of the parameter domain. The time interval has float ends (it is cut in halves, or where
+/// a coordinate of F can first reach 0, see [`ContactFunction::evaluate`]); the two parts of a cut
+/// share the cut float, so they cover their parent exactly. u and v are dyadic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ParamBox {
+    /// [start, end] of the time interval, 0 ≤ start < end ≤ 1.
+    t: (f64, f64),
+    /// How many cuts made the time interval (its depth in the search).
+    t_cuts: u32,
+    u: Dyadic,
+    v: Dyadic,
+}
+
+impl ParamBox {
+    const WHOLE: ParamBox = ParamBox {
+        t: (0.0, 1.0),
+        t_cuts: 0,
+        u: Dyadic::WHOLE,
+        v: Dyadic::WHOLE,
+    };
+
+    /// The two parts of the box cut along parameter `param` (0 = t, at `t_cut`; 1 = u; 2 = v).
+    fn cut(&self, param: usize, t_cut: f64) -> [ParamBox; 2] {
+        let (mut lower, mut upper) = (*self, *self);
+        match param {
+            0 => {
+                lower.t = (self.t.0, t_cut);
+                upper.t = (t_cut, self.t.1);
+                lower.t_cuts += 1;
+                upper.t_cuts += 1;
+            }
+            1 => {
+                lower.u = self.u.lower_half();
+                upper.u = self.u.upper_half();
+            }
+            _ => {
+                lower.v = self.v.lower_half();
+                upper.v = self.v.upper_half();
+            }
+        }
+        [lower, upper]
+    }
+}
+
+/// Most cuts of one time interval: far more than the tolerance needs (halving 1 down to 1e-15
+/// takes 50), a bound on the search's depth.
+const MAX_TIME_CUTS: u32 = 120;
+
+/// A cut at the front of a coordinate that would leave less than this fraction of the time
+/// interval before it is not made (the front is then as good as at the start, and such cuts could
+/// crawl forward one float at a time); the box is split as any other.
+const MIN_FRONT_FRACTION: f64 = 1.0 / 1024.0;
+
+/// The middle of a time interval when it lies strictly inside it (a float between its ends).
+fn time_middle(t: (f64, f64)) -> Option<f64> {
+    let middle = t.0 + 0.5 * (t.1 - t.0);
+    (t.0 < middle && middle < t.1).then_some(middle)
+}
 
 /// Order of examination: earlier start in time first; among equal starts, the more split box first
 /// (it is closer to being settled, and finishing it keeps the queue short). Integer keys, so the
-/// order is exact and the same on every machine.
-fn priority(b: &ParamBox) -> u64 {
-    let level = b[0].level();
-    // The start of the t interval as a 52-bit fixed-point fraction: exact, since level ≤ 52.
-    let start = (b[0].0 - (1u64 << level)) << (MAX_LEVEL - level);
-    // At most 3 × 52 = 156, so it fits in the low 8 bits.
-    let depth = u64::from(b[0].level() + b[1].level() + b[2].level());
-    (start << 8) | (255 - depth)
+/// order is exact and the same on every machine: the bits of a non-negative float order as it does.
+fn priority(b: &ParamBox) -> u128 {
+    let start = u128::from(b.t.0.to_bits());
+    let depth = b.t_cuts + b.u.level() + b.v.level();
+    (start << 32) | u128::from(u32::MAX - depth)
 }
 
 /// A binary min-heap of boxes by [`priority`] in a fixed array: no allocation.
 struct Queue<const N: usize> {
-    items: [(u64, ParamBox); N],
+    items: [(u128, ParamBox); N],
     len: usize,
 }
 
 impl<const N: usize> Queue<N> {
     fn new() -> Self {
         Queue {
-            items: [(0, [Dyadic::WHOLE; 3]); N],
+            items: [(0, ParamBox::WHOLE); N],
             len: 0,
         }
     }
@@ -317,13 +383,14 @@ impl<const N: usize> Queue<N> {
 }
 
 /// What to do with a box after evaluating F at its corners.
+#[derive(Debug)]
 enum Verdict {
     /// F provably has no zero in the box.
     Reject,
     /// F is within the tolerance of 0 over the whole box (or the box cannot be split): a hit.
     Accept,
-    /// Split along this parameter (0 = t, 1 = u, 2 = v).
-    Split(usize),
+    /// Split along this parameter (0 = t, 1 = u, 2 = v); a time split at the given time.
+    Split(usize, f64),
 }
 
 /// F(t, u, v) = D(t) + u E(t) + v G(t) with X(t) = (1 − t) X₀ + t X₁, coordinate by coordinate; the
@@ -402,7 +469,7 @@ impl ContactFunction {
     /// plane), one accepted box after another.
     fn earliest_root(&self, max_boxes: u32) -> Option<CcdHit> {
         let mut queue = Queue::<SMALL_QUEUE>::new();
-        queue.push([Dyadic::WHOLE; 3]);
+        queue.push(ParamBox::WHOLE);
         let mut boxes = 0u32;
         match self.search(&mut queue, &mut boxes, max_boxes) {
             Ok(result) => result,
@@ -433,7 +500,7 @@ impl ContactFunction {
             // The box just split started earliest among the pending ones, and its lower half
             // starts where it did: a conservative stop.
             Err([lower, _]) => Some(CcdHit {
-                time_of_impact: lower[0].bounds().0,
+                time_of_impact: lower.t.0,
                 boxes,
                 exhausted: true,
             }),
@@ -449,7 +516,7 @@ impl ContactFunction {
         max_boxes: u32,
     ) -> Result<Option<CcdHit>, [ParamBox; 2]> {
         while let Some(current) = queue.pop() {
-            let t_lo = current[0].bounds().0;
+            let t_lo = current.t.0;
             if *boxes >= max_boxes {
                 // `current` starts earliest among the unresolved boxes: a conservative stop.
                 return Ok(Some(CcdHit {
@@ -459,7 +526,8 @@ impl ContactFunction {
                 }));
             }
             *boxes += 1;
-            match self.evaluate(&current) {
+            let verdict = self.evaluate(&current);
+            match verdict {
                 Verdict::Reject => {}
                 Verdict::Accept => {
                     return Ok(Some(CcdHit {
@@ -468,11 +536,8 @@ impl ContactFunction {
                         exhausted: false,
                     }));
                 }
-                Verdict::Split(param) => {
-                    let mut lower = current;
-                    let mut upper = current;
-                    lower[param] = current[param].lower_half();
-                    upper[param] = current[param].upper_half();
+                Verdict::Split(param, t_cut) => {
+                    let [lower, upper] = current.cut(param, t_cut);
                     if queue.len + 2 > N {
                         return Err([lower, upper]);
                     }
@@ -486,9 +551,9 @@ impl ContactFunction {
 
     /// Corner values of F over the box, exclusion tests, acceptance, choice of the split.
     fn evaluate(&self, b: &ParamBox) -> Verdict {
-        let (t_lo, t_hi) = b[0].bounds();
-        let (u_lo, u_hi) = b[1].bounds();
-        let (v_lo, v_hi) = b[2].bounds();
+        let (t_lo, t_hi) = b.t;
+        let (u_lo, u_hi) = b.u.bounds();
+        let (v_lo, v_hi) = b.v.bounds();
         // Rounding is monotone and 1 is a float, so a computed sum above 1 means an exact one
         // above 1: the whole box is beyond the triangle's hypotenuse.
         if self.triangle && u_lo + v_lo > 1.0 {
@@ -548,6 +613,12 @@ impl ContactFunction {
         if within_tolerance {
             return Verdict::Accept;
         }
+        // A witness: the point of the start face t = t_lo where |F| is least, found in floating
+        // point and checked with the rigorous bound. If F is within the tolerance there, the box
+        // is a hit at t_lo, as if it had been split down to a box around that point.
+        if self.start_face_within_tolerance(&corners) && self.witness_at(t_lo, t_hi) {
+            return Verdict::Accept;
+        }
         // Split the parameter along which F changes most over the box: "widest" measured in the
         // units of F, so a parameter that F hardly depends on is not split in vain.
         let mut change = [0.0f64; 3];
@@ -561,20 +632,40 @@ impl ContactFunction {
         change[1] *= u_hi - u_lo;
         change[2] *= v_hi - v_lo;
         // But when F provably has no zero on the box's start face (t = t_lo), any contact in it is
-        // later than t_lo: halve the time interval, whose earlier half is then often thrown away.
-        // Otherwise boxes whose only contacts are at their end time (parallel edges landing flat
-        // on each other) are split along u and v all along the contact set, by the thousand,
-        // before the earliest-first order reaches that time. Not below the tolerance, where time
-        // no longer matters for acceptance and the split would only chase rounding.
-        if change[0] > self.tolerance
-            && b[0].level() < MAX_LEVEL
-            && self.start_face_excluded(&corners)
+        // later than t_lo: cut the time interval where the excluding coordinate can first reach 0
+        // (F is affine in t at each (u, v) corner, so that time is where the first corner's line
+        // crosses the bound); the earlier part is then thrown away when examined. Otherwise boxes
+        // whose only contacts are at their end time (parallel edges landing flat on each other)
+        // are split along u and v all along the contact set, by the thousand, before the
+        // earliest-first order reaches that time; and halving time instead chases, one level at a
+        // time, a front that only the coarseness of u and v put there. Not below the tolerance,
+        // where time no longer matters for acceptance and the split would only chase rounding.
+        let middle = if b.t_cuts < MAX_TIME_CUTS {
+            time_middle(b.t)
+        } else {
+            None
+        };
+        if let Some(middle) = middle
+            && change[0] > self.tolerance * WITNESS_SCALE
+            && let Some(fraction) = self.start_face_front(&corners)
+            && fraction >= MIN_FRONT_FRACTION
         {
-            return Verdict::Split(0);
+            let cut = t_lo + fraction * (t_hi - t_lo);
+            let cut = if t_lo < cut && cut < t_hi {
+                cut
+            } else {
+                middle
+            };
+            return Verdict::Split(0, cut);
         }
         let mut best: Option<usize> = None;
-        for (param, interval) in b.iter().enumerate() {
-            if interval.level() >= MAX_LEVEL {
+        let splittable = [
+            middle.is_some(),
+            b.u.level() < MAX_LEVEL,
+            b.v.level() < MAX_LEVEL,
+        ];
+        for param in 0..3 {
+            if !splittable[param] {
                 continue;
             }
             // Strictly greater: on ties the earlier parameter (t first) wins.
@@ -583,26 +674,146 @@ impl ContactFunction {
             }
         }
         match best {
-            Some(param) => Verdict::Split(param),
+            Some(param) => Verdict::Split(param, middle.unwrap_or(t_lo)),
             // Too small to split and not excluded: it counts as a hit.
             None => Verdict::Accept,
         }
     }
 
-    /// Whether some coordinate of F provably has no zero on the face t = t_lo of the box (its four
-    /// corner values at t_lo, with the same error bound as for the whole box).
-    fn start_face_excluded(&self, corners: &[[[f64; 4]; 2]; 3]) -> bool {
+    /// Whether F provably comes within the tolerance of 0 at some (u, v) of the domain at time t
+    /// (t in [0, 1]). The (u, v) where |F| is least is found in floating point (any point of the
+    /// domain would be sound: only the final check counts), moved onto a grid of 2⁻⁴⁰ inside the
+    /// domain so that u + v ≤ 1 holds exactly, and F is evaluated there in the order of the error
+    /// analysis in [`ContactFunction::new`], whose bound covers any t, u, v in [0, 1].
+    fn witness_at(&self, t: f64, t_end: f64) -> bool {
+        let s = 1.0 - t;
+        let mut d = [0.0f64; 3];
+        let mut e = [0.0f64; 3];
+        let mut g = [0.0f64; 3];
+        for k in 0..3 {
+            d[k] = s * self.d[0][k] + t * self.d[1][k];
+            e[k] = s * self.e[0][k] + t * self.e[1][k];
+            g[k] = s * self.g[0][k] + t * self.g[1][k];
+        }
+        let (u, v) = nearest_parameters(&d, &e, &g, self.triangle);
+        // Onto the grid (exact: the products by powers of two are exact, floor is exact), so that
+        // 1 − u is exact and v ≤ 1 − u means u + v ≤ 1 exactly.
+        const GRID: f64 = 1_099_511_627_776.0; // 2^40
+        let u = ((u * GRID).floor() / GRID).clamp(0.0, 1.0);
+        let mut v = ((v * GRID).floor() / GRID).clamp(0.0, 1.0);
+        if self.triangle {
+            v = v.min(1.0 - u);
+        }
+        let tolerance = self.tolerance * WITNESS_SCALE;
+        let close = (0..3).all(|k| {
+            let f = (d[k] + u * e[k]) + v * g[k];
+            f.abs() + self.error[k] <= tolerance
+        });
+        // A near miss closer than the tolerance that rounding can still tell apart (an axis whose
+        // values are all tiny, hence exactly computed) is not taken for a contact: the witness
+        // counts only if F provably keeps no sign on any axis over its neighbourhood, the box that
+        // F needs to change by the tolerance from it (later in time, both ways in u and v).
+        close && !self.excluded_near(t, t_end, u, v, &e, &g, tolerance)
+    }
+
+    /// Whether some coordinate of F provably has no zero on the neighbourhood of (t, u, v) described
+    /// in [`ContactFunction::witness_at`].
+    #[allow(clippy::too_many_arguments)]
+    fn excluded_near(
+        &self,
+        t: f64,
+        t_end: f64,
+        u: f64,
+        v: f64,
+        e: &[f64; 3],
+        g: &[f64; 3],
+        tolerance: f64,
+    ) -> bool {
+        let mut rate = [0.0f64; 3];
+        for k in 0..3 {
+            rate[0] = rate[0].max(
+                (self.d[1][k] - self.d[0][k]).abs()
+                    + (self.e[1][k] - self.e[0][k]).abs()
+                    + (self.g[1][k] - self.g[0][k]).abs(),
+            );
+            rate[1] = rate[1].max(e[k].abs());
+            rate[2] = rate[2].max(g[k].abs());
+        }
+        let reach = |r: f64| if r > 0.0 { tolerance / r } else { 1.0 };
+        let t_hi = t_end.min(t + reach(rate[0]));
+        let (u_lo, u_hi) = ((u - reach(rate[1])).max(0.0), (u + reach(rate[1])).min(1.0));
+        let (v_lo, v_hi) = ((v - reach(rate[2])).max(0.0), (v + reach(rate[2])).min(1.0));
+        let (ts, ss) = ([t, t_hi], [1.0 - t, 1.0 - t_hi]);
         (0..3).any(|k| {
-            let face = &corners[k][0];
-            let min = face[0].min(face[1]).min(face[2]).min(face[3]);
-            let max = face[0].max(face[1]).max(face[2]).max(face[3]);
+            let d = lerp(ss, ts, self.d[0][k], self.d[1][k]);
+            let e = lerp(ss, ts, self.e[0][k], self.e[1][k]);
+            let g = lerp(ss, ts, self.g[0][k], self.g[1][k]);
+            let mut min = f64::INFINITY;
+            let mut max = f64::NEG_INFINITY;
+            for i in 0..2 {
+                for uu in [u_lo, u_hi] {
+                    for vv in [v_lo, v_hi] {
+                        let x = (d[i] + uu * e[i]) + vv * g[i];
+                        min = min.min(x);
+                        max = max.max(x);
+                    }
+                }
+            }
             min > self.error[k] || max < -self.error[k]
         })
     }
 
+    /// Whether every coordinate of F may come within the tolerance of 0 on the face t = t_lo of the
+    /// box (a witness there is worth looking for).
+    fn start_face_within_tolerance(&self, corners: &[[[f64; 4]; 2]; 3]) -> bool {
+        (0..3).all(|k| {
+            let face = &corners[k][0];
+            let min = face[0].min(face[1]).min(face[2]).min(face[3]);
+            let max = face[0].max(face[1]).max(face[2]).max(face[3]);
+            min - self.error[k] <= self.tolerance && max + self.error[k] >= -self.tolerance
+        })
+    }
+
+    /// When some coordinate of F provably has no zero on the face t = t_lo of the box, the
+    /// fraction of the time interval before which it provably has none (up to rounding: the cut
+    /// only guides the search, the examination of each part decides), the latest over such
+    /// coordinates; `None` when no coordinate excludes the start face.
+    fn start_face_front(&self, corners: &[[[f64; 4]; 2]; 3]) -> Option<f64> {
+        let mut front: Option<f64> = None;
+        for (axis, error) in corners.iter().zip(self.error) {
+            let face = &axis[0];
+            let min = face[0].min(face[1]).min(face[2]).min(face[3]);
+            let max = face[0].max(face[1]).max(face[2]).max(face[3]);
+            // Twice the error bound: at the cut the coordinate is still about one bound clear of
+            // it, so the earlier part is thrown away when examined; a start face less than that
+            // clear is left to the other splits.
+            let bound = 2.0 * error;
+            // Signed so that the start face is above the bound.
+            let sign = if min > bound {
+                1.0
+            } else if max < -bound {
+                -1.0
+            } else {
+                continue;
+            };
+            let mut first = 1.0f64;
+            for (start, end) in axis[0].iter().zip(&axis[1]) {
+                let (start, end) = (sign * start, sign * end);
+                if end <= bound {
+                    first = first.min((start - bound) / (start - end));
+                }
+            }
+            front = Some(front.map_or(first, |f| f.max(first)));
+        }
+        front
+    }
+
     /// A second, sharper exclusion test, for boxes the coordinate test keeps: the same test on r·F
-    /// for three directions r, the rows of the adjugate of F's Jacobian J at the box, so that
-    /// r·F ≈ det J × (offset from the root in t, in u, in v). Any fixed r is sound: r·F is affine
+    /// for five directions r: the rows of the adjugate of F's Jacobian J at the box, so that
+    /// r·F ≈ det J × (offset from the root in t, in u, in v), and the two directions in the plane
+    /// of ∂F/∂u and ∂F/∂v square to each of them (r·F free of u, or of v, when F stays in that
+    /// plane: the adjugate's rows then all lie along its normal, where F has no component, and
+    /// reject nothing — primitives moving in one plane). Any fixed r is sound: r·F is affine
     /// in each parameter too, so over the box it lies between its 8 corner values, and it vanishes
     /// wherever F does. Near a grazing contact or nearly parallel edges J is ill-conditioned, and the
     /// coordinate test alone keeps thousands of boxes around the root that these rows throw away.
@@ -636,7 +847,15 @@ impl ContactFunction {
             lo[1].abs().max(hi[1].abs()),
             lo[2].abs().max(hi[2].abs()),
         ];
-        for r in [cross(&du, &dv), cross(&dv, &dt), cross(&dt, &du)] {
+        // Scaled by a power of two (exact) so that its products stay as large as the others'.
+        let normal = scaled_to_unit_exponent(cross(&du, &dv));
+        for r in [
+            normal,
+            cross(&dv, &dt),
+            cross(&dt, &du),
+            cross(&du, &normal),
+            cross(&dv, &normal),
+        ] {
             let mut bound = f64::MIN_POSITIVE;
             for k in 0..3 {
                 bound += r[k].abs() * (self.error[k] + 4.0 * epsilon * magnitude[k]);
@@ -668,6 +887,86 @@ impl ContactFunction {
 #[inline(always)]
 fn lerp(s: [f64; 2], t: [f64; 2], x0: f64, x1: f64) -> [f64; 2] {
     [s[0] * x0 + t[0] * x1, s[1] * x0 + t[1] * x1]
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The (u, v) of the domain (the triangle u, v ≥ 0, u + v ≤ 1, or the square [0, 1]²) where
+/// |d + u e + v g| is least, in floating point: the unconstrained least-squares point if it lies
+/// inside, otherwise the best of the least points of the domain's sides. Only a candidate: NaN or
+/// a poor point makes a check fail, never a wrong answer.
+fn nearest_parameters(d: &[f64; 3], e: &[f64; 3], g: &[f64; 3], triangle: bool) -> (f64, f64) {
+    let (ee, eg, gg) = (dot(e, e), dot(e, g), dot(g, g));
+    let (ed, gd) = (dot(e, d), dot(g, d));
+    let det = ee * gg - eg * eg;
+    if det > 1e-12 * ee * gg && det > 0.0 {
+        let u = (eg * gd - gg * ed) / det;
+        let v = (eg * ed - ee * gd) / det;
+        let inside = u >= 0.0
+            && v >= 0.0
+            && if triangle {
+                u + v <= 1.0
+            } else {
+                u <= 1.0 && v <= 1.0
+            };
+        if inside {
+            return (u, v);
+        }
+    }
+    // Sides as start + s·direction, s in [0, 1], in (u, v).
+    const TRIANGLE: [[f64; 4]; 3] = [
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0, 1.0],
+    ];
+    const SQUARE: [[f64; 4]; 4] = [
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0, 1.0],
+        [0.0, 1.0, 1.0, 0.0],
+    ];
+    let sides: &[[f64; 4]] = if triangle { &TRIANGLE } else { &SQUARE };
+    let mut best = (f64::INFINITY, 0.0, 0.0);
+    for &[u0, v0, du, dv] in sides {
+        let mut start = [0.0f64; 3];
+        let mut along = [0.0f64; 3];
+        for k in 0..3 {
+            start[k] = d[k] + u0 * e[k] + v0 * g[k];
+            along[k] = du * e[k] + dv * g[k];
+        }
+        let length = dot(&along, &along);
+        let s = if length > 0.0 {
+            (-dot(&start, &along) / length).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut gap = 0.0;
+        for k in 0..3 {
+            let x = start[k] + s * along[k];
+            gap += x * x;
+        }
+        if gap < best.0 {
+            best = (gap, u0 + s * du, v0 + s * dv);
+        }
+    }
+    (best.1, best.2)
+}
+
+/// `v` times the power of two that brings its largest component into [1, 2) (exact unless tiny
+/// components underflow, which changes the direction a little: any direction is sound).
+fn scaled_to_unit_exponent(v: [f64; 3]) -> [f64; 3] {
+    let largest = v[0].abs().max(v[1].abs()).max(v[2].abs());
+    if !(largest.is_normal()) {
+        return v;
+    }
+    let exponent = ((largest.to_bits() >> 52) & 0x7ff) as i64 - 1023;
+    // 2^−exponent, split in two factors so that neither overflows nor is subnormal.
+    let half = exponent / 2;
+    let f1 = f64::from_bits(((1023 - half) as u64) << 52);
+    let f2 = f64::from_bits(((1023 - (exponent - half)) as u64) << 52);
+    [v[0] * f1 * f2, v[1] * f1 * f2, v[2] * f1 * f2]
 }
 
 fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {

@@ -16,10 +16,17 @@
 //! timed on its own, [`QUERY_ROUNDS`] rounds of enough calls to last [`QUERY_SPAN`], its time being
 //! the least of the rounds' means (what the query costs, not what the machine's other work added).
 //! Parsing is not timed. Bad input stops the run with a message naming the file and line, exit 1.
+//!
+//! With `--queries`, every query also gets a line of its own before its file's line:
+//! `{"file":…,"query":I,"truth":B,"hit":B,"exhausted":B,"boxes":N,"time_of_impact":X,"ns":X}`
+//! (I counts from 0 in the file's order; `ns` is the query's time as above) — to find the costly
+//! ones.
 
 mod query_file;
 
-use palpa::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
+use palpa::collision::ccd::{
+    CcdHit, CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact,
+};
 use query_file::{Kind, Query, parse_query_file};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,10 +40,11 @@ const QUERY_ROUNDS: usize = 3;
 /// Least duration of one round of one query's calls.
 const QUERY_SPAN: Duration = Duration::from_micros(20);
 
-const USAGE: &str = "usage: palpa-ccd FILE_OR_DIR...\n\
+const USAGE: &str = "usage: palpa-ccd [--queries] FILE_OR_DIR...\n\
     Runs palpa's CCD narrow phase on CCD benchmark query files (CSV, 8 rows per query) and prints\n\
     one JSON line per file. A directory is searched recursively for *.csv files; the query kind is\n\
-    the name of each file's folder: vertex-face or edge-edge.";
+    the name of each file's folder: vertex-face or edge-edge. --queries adds a line per query\n\
+    (truth, hit, boxes examined, time in ns).";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -48,7 +56,13 @@ fn main() -> ExitCode {
         println!("{USAGE}");
         return ExitCode::SUCCESS;
     }
-    match run(&args) {
+    let per_query = args.iter().any(|a| a == "--queries");
+    let paths: Vec<String> = args.into_iter().filter(|a| a != "--queries").collect();
+    if paths.is_empty() {
+        eprintln!("{USAGE}");
+        return ExitCode::from(2);
+    }
+    match run(&paths, per_query) {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {
             eprintln!("palpa-ccd: {message}");
@@ -57,7 +71,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(args: &[String]) -> Result<(), String> {
+fn run(args: &[String], per_query: bool) -> Result<(), String> {
     // Every file and its kind first, so that a wrong argument fails before any output.
     let mut files = Vec::new();
     for arg in args {
@@ -78,6 +92,14 @@ fn run(args: &[String]) -> Result<(), String> {
             .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
         let queries = parse_query_file(&text).map_err(|e| format!("{}: {e}", path.display()))?;
         let (report, times) = evaluate(kind, &queries, &settings);
+        if per_query {
+            for (index, (q, ns)) in queries.iter().zip(&times).enumerate() {
+                let line = query_line(&path.display().to_string(), index, kind, q, *ns, &settings);
+                if !write_line(&mut out, &line)? {
+                    return Ok(());
+                }
+            }
+        }
         let line = report.to_json(&path.display().to_string(), kind.name(), &times);
         all.add(&report);
         bulk_ns += report.ns_per_query * report.queries as f64;
@@ -211,15 +233,38 @@ impl Report {
 }
 
 fn detect(kind: Kind, q: &Query, settings: &CcdSettings) -> bool {
+    query_hit(kind, q, settings).is_some()
+}
+
+fn query_hit(kind: Kind, q: &Query, settings: &CcdSettings) -> Option<CcdHit> {
     let [x0, x1, x2, x3, x4, x5, x6, x7] = &q.points;
     match kind {
-        Kind::VertexFace => {
-            vertex_face_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings).is_some()
-        }
-        Kind::EdgeEdge => {
-            edge_edge_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings).is_some()
-        }
+        Kind::VertexFace => vertex_face_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings),
+        Kind::EdgeEdge => edge_edge_time_of_impact(x0, x1, x2, x3, x4, x5, x6, x7, settings),
     }
+}
+
+/// The `--queries` line of one query.
+fn query_line(
+    file: &str,
+    index: usize,
+    kind: Kind,
+    q: &Query,
+    ns: f64,
+    settings: &CcdSettings,
+) -> String {
+    let hit = query_hit(kind, q, settings);
+    format!(
+        "{{\"file\":{},\"query\":{},\"truth\":{},\"hit\":{},\"exhausted\":{},\"boxes\":{},\"time_of_impact\":{},\"ns\":{:.1}}}",
+        json_string(file),
+        index,
+        q.truth,
+        hit.is_some(),
+        hit.is_some_and(|h| h.exhausted),
+        hit.map_or(0, |h| h.boxes),
+        hit.map_or(-1.0, |h| h.time_of_impact),
+        ns,
+    )
 }
 
 /// The time of one query (ns): the least over [`QUERY_ROUNDS`] rounds of the mean of enough calls
