@@ -193,6 +193,9 @@ pub struct Cutter {
     /// Ticks each tool has been away from the body while through.
     pub away: Vec<u32>,
     stamp: u32,
+    /// Each node's side code against this step's blade box (`Aabb::outcode`): an edge whose two
+    /// ends share a side cannot cross the blade's sweep.
+    node_side: Vec<u8>,
     node_stamp: Vec<u32>,
     cut_stamp: Vec<u32>,
     /// Nodes near this step's crossings (their ends, the blade's tips): the triangles around them
@@ -282,6 +285,7 @@ impl Cutter {
             through: vec![false; tools],
             away: vec![0; tools],
             stamp: 0,
+            node_side: vec![0; capacity],
             node_stamp: vec![0; capacity],
             cut_stamp: vec![0; capacity],
             near_stamp: vec![0; capacity],
@@ -396,14 +400,26 @@ impl Cutter {
         }
         bounds.inflate(self.tolerance(longest));
         let x = &body.surface.position_in_world;
+        // One pass over the nodes: each node's side of the blade's box, the sides they all share
+        // and how many are in it. A blade away from the body stops here, at the cost of that pass
+        // (the edges, three times as many, are not looked at).
+        let mut shared_sides = u8::MAX;
+        let mut inside = 0u32;
+        for (side, p) in self.node_side[..n].iter_mut().zip(&x[..n]) {
+            *side = bounds.outcode(p, p);
+            shared_sides &= *side;
+            inside += u32::from(*side == 0);
+        }
         // Only a blade that pressed through a resistance asks whether it is still near the body.
         if self.settings.resistance > 0.0 {
-            step.nodes_near = x[..n]
-                .iter()
-                .filter(|p| bounds.overlaps_segment(p, p))
-                .count() as u32;
+            step.nodes_near = inside;
         }
         if area <= 1e-14 * size * size.max(1e-9) || size <= 0.0 {
+            return step;
+        }
+        // Every node on one side of the box: no edge crosses the sweep, and no crack tip (a node)
+        // is within the tolerance of it, so the step has nothing to do.
+        if shared_sides != 0 {
             return step;
         }
         // 1. Crossings.
@@ -412,10 +428,11 @@ impl Cutter {
         let edges = &body.edges;
         for k in 0..edges.len() {
             let (a, b) = (edges.a[k], edges.b[k]);
-            let (xa, xb) = (x[a as usize], x[b as usize]);
-            if bounds.outcode(&xa, &xb) != 0 {
+            // The same as `bounds.outcode(xa, xb) != 0`, from the codes of the pass above.
+            if self.node_side[a as usize] & self.node_side[b as usize] != 0 {
                 continue;
             }
+            let (xa, xb) = (x[a as usize], x[b as usize]);
             let Some(t) = segment_triangle(&xa, &xb, &quad[0], &quad[1], &quad[2])
                 .or_else(|| segment_triangle(&xa, &xb, &quad[0], &quad[2], &quad[3]))
             else {
