@@ -124,6 +124,12 @@ fn bench_scaling_quick_writes_consistent_figures() {
     for row in rows {
         let median = finite(&row["median_us"]);
         assert!(median > 0.0);
+        let (p99, p999, max) = (
+            finite(&row["p99_us"]),
+            finite(&row["p999_us"]),
+            finite(&row["max_us"]),
+        );
+        assert!(median <= p99 && p99 <= p999 && p999 <= max, "{row}");
         let stages = row["stages_mean_us"].as_object().unwrap();
         assert!(!stages.is_empty(), "{row}");
         assert!(stages.values().map(finite).all(|t| t >= 0.0), "{row}");

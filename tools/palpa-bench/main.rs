@@ -612,10 +612,11 @@ fn scaling(args: ScalingArgs) -> Result<()> {
             for _ in 0..400 {
                 world.step();
             }
+            // At least 1 000 steps in a full run, so that the p99.9 is one of them.
             let steps = if args.quick {
                 100
             } else {
-                (2_000_000 / nodes).clamp(50, 2000)
+                (2_000_000 / nodes).clamp(1000, 2000)
             };
             let mut profile = StepProfile::default();
             let mut times = Vec::with_capacity(steps);
@@ -638,6 +639,8 @@ fn scaling(args: ScalingArgs) -> Result<()> {
                 "steps": steps,
                 "median_us": median,
                 "p99_us": percentile(&times, 0.99),
+                "p999_us": percentile(&times, 0.999),
+                "max_us": times.last().copied().unwrap_or(f64::NAN),
                 "stages_mean_us": stages,
             }));
             progress.step(&format!(
@@ -684,7 +687,7 @@ fn scaling(args: ScalingArgs) -> Result<()> {
         "# palpa-bench scaling\n\n`{}` — {} — {}\n\nOne step (multi-rate integrator, one thread) of an \
          icosphere (rigid component held) resting on a table, without and with an 8 mm probe pressed 5 mm into it. Fitted \
          log-log slope: {slope_free:.2} without the probe, {slope_probe:.2} with it.\n\n\
-         | nodes | probe | median (µs) | p99 (µs) |",
+         | nodes | probe | steps | median (µs) | p99 (µs) | p99.9 (µs) | max (µs) |",
         result["command"].as_str().unwrap_or(""),
         result["date"].as_str().unwrap_or(""),
         result["machine"].as_str().unwrap_or("")
@@ -692,22 +695,25 @@ fn scaling(args: ScalingArgs) -> Result<()> {
     for s in Stage::ALL {
         md += &format!(" {} |", s.name());
     }
-    md += "\n| --- | --- | --- | --- |";
+    md += "\n| --- | --- | --- | --- | --- | --- | --- |";
     for _ in Stage::ALL {
         md += " --- |";
     }
     md += "\n";
     for row in &rows {
         md += &format!(
-            "| {} | {} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
             row["nodes"],
             if row["probe"].as_bool() == Some(true) {
                 "yes"
             } else {
                 "no"
             },
+            row["steps"],
             row["median_us"].as_f64().unwrap_or(f64::NAN),
-            row["p99_us"].as_f64().unwrap_or(f64::NAN)
+            row["p99_us"].as_f64().unwrap_or(f64::NAN),
+            row["p999_us"].as_f64().unwrap_or(f64::NAN),
+            row["max_us"].as_f64().unwrap_or(f64::NAN)
         );
         for s in Stage::ALL {
             md += &format!(
