@@ -155,10 +155,12 @@ impl Guard {
     }
 
     fn diagnose(&self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
-        // One pass without early exit (it vectorises): the largest squared speed and stretch, and a
-        // sum that turns non-finite if any position or velocity is.
+        // One pass without early exit: the largest squared speed and stretch, and whether any
+        // node's is not finite (NaN or infinite). Plain comparisons,
+        // not `f64::max` (whose NaN rule keeps the loop scalar), and an or of flags, not a sum: the
+        // same answer in any order.
         let s = &body.surface;
-        let (mut speed2, mut stretch2, mut sum) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut speed2, mut stretch2, mut bad) = (0.0f64, 0.0f64, false);
         for ((v, x), h) in s
             .velocity_in_world
             .iter()
@@ -167,11 +169,11 @@ impl Guard {
         {
             let v2 = v.norm_squared();
             let s2 = (x - h).norm_squared();
-            speed2 = speed2.max(v2);
-            stretch2 = stretch2.max(s2);
-            sum += v2 + s2;
+            speed2 = if v2 > speed2 { v2 } else { speed2 };
+            stretch2 = if s2 > stretch2 { s2 } else { stretch2 };
+            bad |= !(v2 + s2).is_finite();
         }
-        if !sum.is_finite() || !body.rigid.is_finite() {
+        if bad || !body.rigid.is_finite() {
             return Some(GuardCause::NonFinite);
         }
         // The rigid component: its centre, and the rim of its turning (|ω| times the body's size).
@@ -226,6 +228,60 @@ impl Guard {
             s.homologue_in_world[i] = h;
             s.velocity_in_world[i] = r.velocity_in_world + omega.cross(&arm);
             s.force_in_world[i] = Vec3::zeros();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::{BodyParams, Placement};
+    use crate::scene::mesh::icosphere;
+
+    fn body() -> Body {
+        Body::new(
+            "organ",
+            &icosphere(0.05, 2),
+            &BodyParams::default(),
+            &Placement::default(),
+        )
+    }
+
+    #[test]
+    fn a_state_that_is_not_finite_anywhere_is_caught() {
+        let gravity = Vec3::new(0.0, 0.0, -9.81);
+        let rest = body();
+        let mut guard = Guard::new(&rest, &gravity);
+        let mut good = rest.clone();
+        assert_eq!(guard.check(&mut good, None), None);
+        // A NaN or an infinity in one velocity or one position, at the first, a middle or the last
+        // node: the or of the nodes' flags must see it wherever it is.
+        let n = rest.node_count();
+        for node in [0, n / 2, n - 1] {
+            for value in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                for in_velocity in [true, false] {
+                    let mut bad = rest.clone();
+                    let s = &mut bad.surface;
+                    if in_velocity {
+                        s.velocity_in_world[node].y = value;
+                    } else {
+                        s.position_in_world[node].z = value;
+                    }
+                    let mut guard = Guard::new(&rest, &gravity);
+                    assert_eq!(
+                        guard.check(&mut bad, None),
+                        Some(GuardCause::NonFinite),
+                        "node {node}, {value}, velocity {in_velocity}"
+                    );
+                    // Restored to the last good state: finite again.
+                    assert!(
+                        bad.surface
+                            .position_in_world
+                            .iter()
+                            .all(|x| x.iter().all(|c| c.is_finite()))
+                    );
+                }
+            }
         }
     }
 }
