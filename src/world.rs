@@ -735,8 +735,16 @@ impl World {
         for kernel in &mut self.kernels {
             kernel.set_simd(simd);
         }
+        for solver in &mut self.solvers {
+            if let BodySolver::Multirate(m) = solver {
+                m.set_simd(simd);
+            }
+        }
         for spare in self.spares.iter_mut().flatten() {
             spare.kernel.set_simd(simd);
+            if let BodySolver::Multirate(m) = &mut spare.solver {
+                m.set_simd(simd);
+            }
         }
     }
 

@@ -85,6 +85,9 @@ pub struct Multirate {
     carried_torque: Vec3,
     /// The rigid component's centre at the start and the end of its current update (m, world).
     centre_interval: [Vec3; 2],
+    /// Whether the springs of a base step are computed four at a time with AVX (the same
+    /// operations per spring and the same order of the sums, so the same bits as one at a time).
+    simd: bool,
 }
 
 impl Multirate {
@@ -124,9 +127,16 @@ impl Multirate {
             carried_force: Vec3::zeros(),
             carried_torque: Vec3::zeros(),
             centre_interval: [Vec3::zeros(); 2],
+            simd: crate::dynamics::kernel::simd_available(),
         };
         multirate.rebuild(body, dt);
         multirate
+    }
+
+    /// Uses the AVX spring loop when the machine has AVX and `simd` is true (the scalar loop
+    /// otherwise); both give the same bits.
+    pub fn set_simd(&mut self, simd: bool) {
+        self.simd = simd && crate::dynamics::kernel::simd_available();
     }
 
     /// Adds a force from outside the body (an attachment's) on `node` for the next step; the
@@ -510,15 +520,7 @@ impl Multirate {
                 reaction_torque -= arm.cross(&link) * weight;
                 self.f[i] = gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
             }
-            for k in 0..e.len() {
-                let (a, b) = (e.a[k] as usize, e.b[k] as usize);
-                let Some(force) = spring_pull(e, k, &self.x[a], &self.v[a], &self.x[b], &self.v[b])
-                else {
-                    continue;
-                };
-                self.f[a] += force;
-                self.f[b] -= force;
-            }
+            add_spring_forces(e, &self.x, &self.v, &mut self.f, self.simd);
             if deep {
                 self.x_base[..n].copy_from_slice(&self.x[..n]);
             }
@@ -676,6 +678,152 @@ impl Multirate {
 /// The force spring `edge` puts on its end at `x` (velocity `v`) from its other end at `xj` (`vj`);
 /// `None` for coincident ends.
 #[inline(always)]
+/// Every spring's force on its two ends, added to `f` in the order of the springs: `f[a] +=`, then
+/// `f[b] −=`, spring after spring (what [`spring_pull`] gives, one spring at a time). With `simd`
+/// (the caller checked AVX) four springs are computed side by side with the same operations and
+/// their forces added in the same order, so the bits are the same.
+fn add_spring_forces(e: &crate::body::Edges, x: &[Vec3], v: &[Vec3], f: &mut [Vec3], simd: bool) {
+    let mut from = 0;
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        // SAFETY: `simd` is only set where the machine has AVX (`Multirate::set_simd`); the edges'
+        // ends index the node arrays (a body's invariant, checked by the slicing below).
+        from = unsafe { avx::add_spring_forces(e, x, v, f) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
+    for k in from..e.len() {
+        let (a, b) = (e.a[k] as usize, e.b[k] as usize);
+        let Some(force) = spring_pull(e, k, &x[a], &v[a], &x[b], &v[b]) else {
+            continue;
+        };
+        f[a] += force;
+        f[b] -= force;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use crate::Vec3;
+    use std::arch::x86_64::*;
+
+    /// Four `Vec3` at the given indices (below the slice's length: the caller checks) as vectors
+    /// of x, y and z.
+    #[inline(always)]
+    unsafe fn gather3(p: *const f64, idx: &[usize; 4]) -> [__m256d; 3] {
+        unsafe {
+            let at = |l: usize| p.add(3 * idx[l]);
+            let lo = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(at(0))),
+                _mm_loadu_pd(at(2)),
+            );
+            let hi = _mm256_insertf128_pd::<1>(
+                _mm256_castpd128_pd256(_mm_loadu_pd(at(1))),
+                _mm_loadu_pd(at(3)),
+            );
+            let z01 = _mm_unpacklo_pd(_mm_load_sd(at(0).add(2)), _mm_load_sd(at(1).add(2)));
+            let z23 = _mm_unpacklo_pd(_mm_load_sd(at(2).add(2)), _mm_load_sd(at(3).add(2)));
+            [
+                _mm256_unpacklo_pd(lo, hi),
+                _mm256_unpackhi_pd(lo, hi),
+                _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(z01), z23),
+            ]
+        }
+    }
+
+    /// The springs in blocks of four, as [`super::spring_pull`] computes one: d = x_b − x_a,
+    /// l = √((dx² + dy²) + dz²), 1/l, m = k (l − L) + ((c ((u·d))) · 1/l) with u = v_b − v_a and the
+    /// dot products summed in the same order, force = d · (m · 1/l); then, spring after spring, the
+    /// force added to its first end and taken from its second (none when l ≤ `f64::MIN_POSITIVE`).
+    /// Returns how many springs it did (the rest, fewer than four, are the caller's).
+    ///
+    /// # Safety
+    /// The machine must have AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn add_spring_forces(
+        e: &crate::body::Edges,
+        x: &[Vec3],
+        v: &[Vec3],
+        f: &mut [Vec3],
+    ) -> usize {
+        let blocks = e.len() / 4;
+        let tiny = _mm256_set1_pd(f64::MIN_POSITIVE);
+        let one = _mm256_set1_pd(1.0);
+        let (xp, vp) = (x.as_ptr() as *const f64, v.as_ptr() as *const f64);
+        for block in 0..blocks {
+            let k0 = 4 * block;
+            let a: [usize; 4] = std::array::from_fn(|l| e.a[k0 + l] as usize);
+            let b: [usize; 4] = std::array::from_fn(|l| e.b[k0 + l] as usize);
+            assert!(
+                a.iter()
+                    .chain(&b)
+                    .all(|&i| i < x.len() && i < v.len() && i < f.len()),
+                "a spring's end is not a node"
+            );
+            // SAFETY: every index is below the lengths, checked just above.
+            let (xa, xb, va, vb) = unsafe {
+                (
+                    gather3(xp, &a),
+                    gather3(xp, &b),
+                    gather3(vp, &a),
+                    gather3(vp, &b),
+                )
+            };
+            let d = [
+                _mm256_sub_pd(xb[0], xa[0]),
+                _mm256_sub_pd(xb[1], xa[1]),
+                _mm256_sub_pd(xb[2], xa[2]),
+            ];
+            let length2 = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(d[0], d[0]), _mm256_mul_pd(d[1], d[1])),
+                _mm256_mul_pd(d[2], d[2]),
+            );
+            let length = _mm256_sqrt_pd(length2);
+            let inverse = _mm256_div_pd(one, length);
+            let u = [
+                _mm256_sub_pd(vb[0], va[0]),
+                _mm256_sub_pd(vb[1], va[1]),
+                _mm256_sub_pd(vb[2], va[2]),
+            ];
+            let along = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(u[0], d[0]), _mm256_mul_pd(u[1], d[1])),
+                _mm256_mul_pd(u[2], d[2]),
+            );
+            // SAFETY: k0 + 4 ≤ e.len(), the length of each of these arrays.
+            let (k, c, rest) = unsafe {
+                (
+                    _mm256_loadu_pd(e.stiffness[k0..k0 + 4].as_ptr()),
+                    _mm256_loadu_pd(e.damping[k0..k0 + 4].as_ptr()),
+                    _mm256_loadu_pd(e.rest_length[k0..k0 + 4].as_ptr()),
+                )
+            };
+            let magnitude = _mm256_add_pd(
+                _mm256_mul_pd(k, _mm256_sub_pd(length, rest)),
+                _mm256_mul_pd(_mm256_mul_pd(c, along), inverse),
+            );
+            let scale = _mm256_mul_pd(magnitude, inverse);
+            // Not (l ≤ tiny): true for NaN too, as the scalar test `l <= tiny` is false for it.
+            let valid = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NLE_UQ>(length, tiny));
+            let mut p = [[0.0f64; 4]; 3];
+            // SAFETY: stores into local arrays of four.
+            unsafe {
+                _mm256_storeu_pd(p[0].as_mut_ptr(), _mm256_mul_pd(d[0], scale));
+                _mm256_storeu_pd(p[1].as_mut_ptr(), _mm256_mul_pd(d[1], scale));
+                _mm256_storeu_pd(p[2].as_mut_ptr(), _mm256_mul_pd(d[2], scale));
+            }
+            for l in 0..4 {
+                if valid & (1 << l) == 0 {
+                    continue;
+                }
+                let force = Vec3::new(p[0][l], p[1][l], p[2][l]);
+                f[a[l]] += force;
+                f[b[l]] -= force;
+            }
+        }
+        4 * blocks
+    }
+}
+
 fn spring_pull(
     e: &crate::body::Edges,
     edge: usize,
