@@ -804,20 +804,38 @@ mod avx {
             let scale = _mm256_mul_pd(magnitude, inverse);
             // Not (l ≤ tiny): true for NaN too, as the scalar test `l <= tiny` is false for it.
             let valid = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NLE_UQ>(length, tiny));
-            let mut p = [[0.0f64; 4]; 3];
-            // SAFETY: stores into local arrays of four.
-            unsafe {
-                _mm256_storeu_pd(p[0].as_mut_ptr(), _mm256_mul_pd(d[0], scale));
-                _mm256_storeu_pd(p[1].as_mut_ptr(), _mm256_mul_pd(d[1], scale));
-                _mm256_storeu_pd(p[2].as_mut_ptr(), _mm256_mul_pd(d[2], scale));
-            }
+            let (px, py, pz) = (
+                _mm256_mul_pd(d[0], scale),
+                _mm256_mul_pd(d[1], scale),
+                _mm256_mul_pd(d[2], scale),
+            );
+            // Each lane's (x, y) as one 128-bit vector, its z alone.
+            let t0 = _mm256_unpacklo_pd(px, py);
+            let t1 = _mm256_unpackhi_pd(px, py);
+            let xy = [
+                _mm256_castpd256_pd128(t0),
+                _mm256_castpd256_pd128(t1),
+                _mm256_extractf128_pd::<1>(t0),
+                _mm256_extractf128_pd::<1>(t1),
+            ];
+            let mut z = [0.0f64; 4];
+            // SAFETY: a store into a local array of four.
+            unsafe { _mm256_storeu_pd(z.as_mut_ptr(), pz) };
+            let fp = f.as_mut_ptr() as *mut f64;
             for l in 0..4 {
                 if valid & (1 << l) == 0 {
                     continue;
                 }
-                let force = Vec3::new(p[0][l], p[1][l], p[2][l]);
-                f[a[l]] += force;
-                f[b[l]] -= force;
+                // SAFETY: a[l], b[l] < f.len() (checked above): 3 f64 from 3·index are inside `f`.
+                // The same additions as `f[a] += force; f[b] -= force`, component by component.
+                unsafe {
+                    let fa = fp.add(3 * a[l]);
+                    _mm_storeu_pd(fa, _mm_add_pd(_mm_loadu_pd(fa), xy[l]));
+                    *fa.add(2) += z[l];
+                    let fb = fp.add(3 * b[l]);
+                    _mm_storeu_pd(fb, _mm_sub_pd(_mm_loadu_pd(fb), xy[l]));
+                    *fb.add(2) -= z[l];
+                }
             }
         }
         4 * blocks
