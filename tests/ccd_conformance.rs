@@ -273,6 +273,17 @@ fn binary_reports_one_json_line_for_a_file() {
     );
 }
 
+/// The lines of a successful run's standard output, each parsed as JSON, and the output itself.
+fn json_lines(output: Output) -> (String, Vec<serde_json::Value>) {
+    assert!(output.status.success(), "{output:?}");
+    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
+    let lines = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON line"))
+        .collect();
+    (stdout, lines)
+}
+
 /// A scratch folder of its own for each test, under the target directory.
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
@@ -310,12 +321,7 @@ fn binary_walks_folders_in_sorted_order() {
         std::fs::write(folder.join("notes.txt"), "not a query file").expect("write");
     }
     let output = palpa_ccd(&[&dir]);
-    assert!(output.status.success(), "{output:?}");
-    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
-    let lines: Vec<serde_json::Value> = stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON line"))
-        .collect();
+    let (stdout, lines) = json_lines(output);
     assert_eq!(lines.len(), 3, "{stdout}");
     // edge-edge sorts before vertex-face; notes.txt is not read; then the line over both.
     assert_eq!(lines[0]["kind"], "edge-edge");
@@ -402,12 +408,7 @@ fn binary_lists_every_query_when_asked() {
     std::fs::write(&file, query_rows(1) + &query_rows(1)).expect("write query file");
     let flag = Path::new("--queries");
     let output = palpa_ccd(&[flag, &file]);
-    assert!(output.status.success(), "{output:?}");
-    let stdout = String::from_utf8(output.stdout).expect("UTF-8 output");
-    let lines: Vec<serde_json::Value> = stdout
-        .lines()
-        .map(|l| serde_json::from_str(l).expect("JSON line"))
-        .collect();
+    let (stdout, lines) = json_lines(output);
     // Two query lines, then the file's line.
     assert_eq!(lines.len(), 3, "{stdout}");
     for (index, line) in lines[..2].iter().enumerate() {

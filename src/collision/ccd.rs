@@ -641,7 +641,8 @@ impl ContactFunction {
         // A witness: the point of the start face t = t_lo where |F| is least, found in floating
         // point and checked with the rigorous bound. If F is within the tolerance there, the box
         // is a hit at t_lo, as if it had been split down to a box around that point.
-        if self.start_face_within_tolerance(&corners) && self.witness_at(t_lo, t_hi) {
+        let start_face = start_face_bounds(&corners);
+        if self.start_face_within_tolerance(&start_face) && self.witness_at(t_lo, t_hi) {
             return Verdict::Accept;
         }
         // Split the parameter along which F changes most over the box: "widest" measured in the
@@ -672,7 +673,7 @@ impl ContactFunction {
         };
         if let Some(middle) = middle
             && change[0] > self.tolerance * WITNESS_SCALE
-            && let Some(fraction) = self.start_face_front(&corners)
+            && let Some(fraction) = self.start_face_front(&corners, &start_face)
             && fraction >= MIN_FRONT_FRACTION
         {
             let cut = t_lo + fraction * (t_hi - t_lo);
@@ -793,11 +794,9 @@ impl ContactFunction {
     /// Whether every coordinate of F may come within the tolerance of 0 on the face t = t_lo of the
     /// box (a witness there is worth looking for).
     #[inline(always)]
-    fn start_face_within_tolerance(&self, corners: &[[[f64; 4]; 2]; 3]) -> bool {
+    fn start_face_within_tolerance(&self, start_face: &[(f64, f64); 3]) -> bool {
         (0..3).all(|k| {
-            let face = &corners[k][0];
-            let min = face[0].min(face[1]).min(face[2]).min(face[3]);
-            let max = face[0].max(face[1]).max(face[2]).max(face[3]);
+            let (min, max) = start_face[k];
             min - self.error[k] <= self.tolerance && max + self.error[k] >= -self.tolerance
         })
     }
@@ -807,12 +806,13 @@ impl ContactFunction {
     /// only guides the search, the examination of each part decides), the latest over such
     /// coordinates; `None` when no coordinate excludes the start face.
     #[inline(always)]
-    fn start_face_front(&self, corners: &[[[f64; 4]; 2]; 3]) -> Option<f64> {
+    fn start_face_front(
+        &self,
+        corners: &[[[f64; 4]; 2]; 3],
+        start_face: &[(f64, f64); 3],
+    ) -> Option<f64> {
         let mut front: Option<f64> = None;
-        for (axis, error) in corners.iter().zip(self.error) {
-            let face = &axis[0];
-            let min = face[0].min(face[1]).min(face[2]).min(face[3]);
-            let max = face[0].max(face[1]).max(face[2]).max(face[3]);
+        for ((axis, error), &(min, max)) in corners.iter().zip(self.error).zip(start_face) {
             // Twice the error bound: at the cut the coordinate is still about one bound clear of
             // it, so the earlier part is thrown away when examined; a start face less than that
             // clear is left to the other splits.
@@ -924,6 +924,18 @@ fn min_max(x: &[[f64; 4]; 2]) -> (f64, f64) {
     let lo = [less(lo[0], lo[2]), less(lo[1], lo[3])];
     let hi = [more(hi[0], hi[2]), more(hi[1], hi[3])];
     (less(lo[0], lo[1]), more(hi[0], hi[1]))
+}
+
+/// Per axis, the least and the greatest corner value of F on a box's start face (t = t_lo).
+#[inline(always)]
+fn start_face_bounds(corners: &[[[f64; 4]; 2]; 3]) -> [(f64, f64); 3] {
+    corners.map(|axis| {
+        let face = &axis[0];
+        (
+            face[0].min(face[1]).min(face[2]).min(face[3]),
+            face[0].max(face[1]).max(face[2]).max(face[3]),
+        )
+    })
 }
 
 #[inline(always)]

@@ -156,9 +156,8 @@ impl Guard {
 
     fn diagnose(&self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
         // One pass without early exit: the largest squared speed and stretch, and whether any
-        // node's is not finite (NaN or infinite). Plain comparisons,
-        // not `f64::max` (whose NaN rule keeps the loop scalar), and an or of flags, not a sum: the
-        // same answer in any order.
+        // node's is not finite (NaN or infinite). Plain comparisons, not `f64::max` (whose NaN rule
+        // keeps the loop scalar), and an or of flags, not a sum: the same answer in any order.
         let s = &body.surface;
         let (mut speed2, mut stretch2, mut bad) = (0.0f64, 0.0f64, false);
         for ((v, x), h) in s

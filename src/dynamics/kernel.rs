@@ -600,7 +600,7 @@ fn scalar_edge_pass(
 }
 
 #[cfg(target_arch = "x86_64")]
-mod avx {
+pub(crate) mod avx {
     use super::{EdgeBatches, LANES};
     use crate::Vec3;
     use std::arch::x86_64::*;
@@ -786,9 +786,13 @@ mod avx {
         }
     }
 
-    /// Four `Vec3` at the given indices as vectors of x, y and z.
+    /// Four `Vec3` at the given indices as vectors of x, y and z (also the multi-rate
+    /// integrator's spring loop's).
+    ///
+    /// # Safety
+    /// `p` points to an array of `Vec3` with more than every index elements; AVX.
     #[inline(always)]
-    unsafe fn gather3(p: *const f64, idx: &[u32; LANES]) -> [__m256d; 3] {
+    pub(crate) unsafe fn gather3(p: *const f64, idx: &[u32; LANES]) -> [__m256d; 3] {
         unsafe {
             let at = |l: usize| p.add(3 * idx[l] as usize);
             let lo = _mm256_insertf128_pd::<1>(

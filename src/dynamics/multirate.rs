@@ -705,31 +705,8 @@ fn add_spring_forces(e: &crate::body::Edges, x: &[Vec3], v: &[Vec3], f: &mut [Ve
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use crate::Vec3;
+    use crate::dynamics::kernel::avx::gather3;
     use std::arch::x86_64::*;
-
-    /// Four `Vec3` at the given indices (below the slice's length: the caller checks) as vectors
-    /// of x, y and z.
-    #[inline(always)]
-    unsafe fn gather3(p: *const f64, idx: &[usize; 4]) -> [__m256d; 3] {
-        unsafe {
-            let at = |l: usize| p.add(3 * idx[l]);
-            let lo = _mm256_insertf128_pd::<1>(
-                _mm256_castpd128_pd256(_mm_loadu_pd(at(0))),
-                _mm_loadu_pd(at(2)),
-            );
-            let hi = _mm256_insertf128_pd::<1>(
-                _mm256_castpd128_pd256(_mm_loadu_pd(at(1))),
-                _mm_loadu_pd(at(3)),
-            );
-            let z01 = _mm_unpacklo_pd(_mm_load_sd(at(0).add(2)), _mm_load_sd(at(1).add(2)));
-            let z23 = _mm_unpacklo_pd(_mm_load_sd(at(2).add(2)), _mm_load_sd(at(3).add(2)));
-            [
-                _mm256_unpacklo_pd(lo, hi),
-                _mm256_unpackhi_pd(lo, hi),
-                _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(z01), z23),
-            ]
-        }
-    }
 
     /// The springs in blocks of four, as [`super::spring_pull`] computes one: d = x_b − x_a,
     /// l = √((dx² + dy²) + dz²), 1/l, m = k (l − L) + ((c ((u·d))) · 1/l) with u = v_b − v_a and the
@@ -752,12 +729,13 @@ mod avx {
         let (xp, vp) = (x.as_ptr() as *const f64, v.as_ptr() as *const f64);
         for block in 0..blocks {
             let k0 = 4 * block;
-            let a: [usize; 4] = std::array::from_fn(|l| e.a[k0 + l] as usize);
-            let b: [usize; 4] = std::array::from_fn(|l| e.b[k0 + l] as usize);
+            let a: [u32; 4] = std::array::from_fn(|l| e.a[k0 + l]);
+            let b: [u32; 4] = std::array::from_fn(|l| e.b[k0 + l]);
             assert!(
-                a.iter()
-                    .chain(&b)
-                    .all(|&i| i < x.len() && i < v.len() && i < f.len()),
+                a.iter().chain(&b).all(|&i| {
+                    let i = i as usize;
+                    i < x.len() && i < v.len() && i < f.len()
+                }),
                 "a spring's end is not a node"
             );
             // SAFETY: every index is below the lengths, checked just above.
@@ -829,10 +807,10 @@ mod avx {
                 // SAFETY: a[l], b[l] < f.len() (checked above): 3 f64 from 3·index are inside `f`.
                 // The same additions as `f[a] += force; f[b] -= force`, component by component.
                 unsafe {
-                    let fa = fp.add(3 * a[l]);
+                    let fa = fp.add(3 * a[l] as usize);
                     _mm_storeu_pd(fa, _mm_add_pd(_mm_loadu_pd(fa), xy[l]));
                     *fa.add(2) += z[l];
-                    let fb = fp.add(3 * b[l]);
+                    let fb = fp.add(3 * b[l] as usize);
                     _mm_storeu_pd(fb, _mm_sub_pd(_mm_loadu_pd(fb), xy[l]));
                     *fb.add(2) -= z[l];
                 }
