@@ -6,13 +6,18 @@
 //! 1. **Crossings.** Every surface edge that passes through the swept quad is crossed at a fraction t.
 //!    The crossing *snaps* to an end of the edge when that node lies within the fidelity tolerance of
 //!    the quad (max(`tolerance`, a quarter of the edge's rest length)); otherwise the edge is *split*
-//!    there (a new node: the paper's mass rule, momentum kept, the spring cut in two springs in
-//!    series). Snapped splits never fall within a quarter of an edge's end, which bounds the shapes.
+//!    there (a new node at the crossing point: the paper's mass rule, momentum kept, the spring cut
+//!    in two springs in series). Snapped splits never fall within a quarter of an edge's end, which
+//!    bounds the shapes. A blade whose segment does not start where its last step ended (it jumped)
+//!    starts a new cut: its old tips are not joined.
 //! 2. **Templates.** Each triangle with split edges is replaced by children that keep its orientation
 //!    (one split: two children; two: a corner triangle and the better diagonal of the quad; three: four
 //!    children). When the best choice would still leave a child sharper than the quality bound
 //!    (min(`min_angle`, half the smallest angle of the original mesh)), the triangle's remaining edge
-//!    is split at its middle as well, and the choice made again. Before that, a split node whose
+//!    is split at its middle as well, and the choice made again. Before that, a path split whose
+//!    triangles would be too sharp *snaps* to the nearer end of its edge when that end lies within
+//!    the fidelity tolerance of the local edge length (the longest side of the triangles on the
+//!    edge) rather than of the edge's own length, and a split node whose
 //!    triangles would be too sharp *slides* along its edge (within ¾ of the fidelity tolerance of the
 //!    swept quad for a path node; anywhere in the edge's middle 60 % for a quality split): a path
 //!    that cuts a corner off just beyond the snapping distance otherwise leaves a short edge with a
@@ -192,6 +197,9 @@ pub struct Cutter {
     pub through: Vec<bool>,
     /// Ticks each tool has been away from the body while through.
     pub away: Vec<u32>,
+    /// Each tool's cutting segment at the end of its last step (world frame): a step that does not
+    /// start where the last one ended is a jump, and the blade's tips are forgotten.
+    last_end: Vec<Option<[Vec3; 2]>>,
     stamp: u32,
     /// Each node's side code against this step's blade box (`Aabb::outcode`): an edge whose two
     /// ends share a side cannot cross the blade's sweep.
@@ -207,6 +215,8 @@ pub struct Cutter {
     split_rest: Vec<Vec3>,
     affected: Vec<Affected>,
     path_edges: Vec<(u32, u32)>,
+    /// Where this step's own path edges start in `path_edges` (those before are pending ones).
+    new_path_from: usize,
     /// Path edges not opened yet (a slit of one edge cannot open): kept for the next steps.
     pending: Vec<(u32, u32)>,
     fan: Vec<(u32, u32)>,
@@ -284,6 +294,7 @@ impl Cutter {
             tips: vec![Tips::default(); tools],
             through: vec![false; tools],
             away: vec![0; tools],
+            last_end: vec![None; tools],
             stamp: 0,
             node_side: vec![0; capacity],
             node_stamp: vec![0; capacity],
@@ -297,6 +308,7 @@ impl Cutter {
             split_rest: Vec::with_capacity(MAX_CROSSINGS),
             affected: Vec::with_capacity(4 * MAX_CROSSINGS),
             path_edges: Vec::with_capacity(8 * MAX_CROSSINGS),
+            new_path_from: 0,
             pending: Vec::with_capacity(4 * MAX_CROSSINGS),
             fan: Vec::with_capacity(16 * MAX_CROSSINGS),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
@@ -316,6 +328,12 @@ impl Cutter {
         self.pending
             .iter()
             .any(|&(p, q)| p == a || p == b || q == a || q == b)
+    }
+
+    /// The path edges the last step (cut or tear) made, as node pairs of the mesh (each opened
+    /// into two lips, or kept pending); empty after a step that cut nothing.
+    pub fn last_path_edges(&self) -> &[(u32, u32)] {
+        &self.path_edges[self.new_path_from.min(self.path_edges.len())..]
     }
 
     /// Adds a transection's figures to the counters.
@@ -374,6 +392,19 @@ impl Cutter {
         end: [Vec3; 2],
     ) -> CutStep {
         let mut step = CutStep::default();
+        self.new_path_from = self.path_edges.len();
+        // A blade that jumped (its segment does not start where the last step left it: a pose
+        // glitch, or a blade set down elsewhere) starts a new cut: joining its old tips would open
+        // tissue it never swept.
+        if let Some(last) = self.last_end.get_mut(tool) {
+            let jumped = last.is_some_and(|l| {
+                (l[0] - start[0]).norm().max((l[1] - start[1]).norm()) > self.settings.tolerance
+            });
+            if jumped && let Some(tips) = self.tips.get_mut(tool) {
+                tips.clear();
+            }
+            *last = Some(end);
+        }
         // The quad reaches back over a quarter of the tick's motion, into the last one's: the body
         // moves too, and an edge whose crossing sat on the line between two ticks' quads could
         // slip back out of both (the crossings of the last tick are split or snapped, so only
@@ -476,6 +507,11 @@ impl Cutter {
         // 2. Templates, with quality splits, up to three rounds.
         for _round in 0..QUALITY_ROUNDS {
             self.collect_affected(body, tool, stamp, &quad);
+            if self.snap_for_quality(body, &quad) {
+                self.snap_along_edges(tool);
+                self.number_splits(body);
+                self.collect_affected(body, tool, stamp, &quad);
+            }
             if self.slide_splits(body, &quad) {
                 self.collect_affected(body, tool, stamp, &quad);
             }
@@ -528,6 +564,7 @@ impl Cutter {
         // 3. Path edges, and tips for the next step.
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
+        self.new_path_from = self.pending.len();
         for i in 0..self.affected.len() {
             let a = self.affected[i];
             if let Some(pair) = a.path {
@@ -601,6 +638,7 @@ impl Cutter {
         }
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
+        self.new_path_from = self.pending.len();
         for &(p, q) in edges {
             // Path edges are (smaller, larger) node pairs.
             let pair = (p.min(q), p.max(q));
@@ -913,6 +951,58 @@ impl Cutter {
             .fold(-1.0, f64::max)
     }
 
+    /// Snaps a path split whose templates stay below the quality bound to the nearer end of its edge
+    /// when that end lies within the fidelity tolerance of the *local* edge length (the longest side
+    /// of the triangles the crossing is on) from the swept quad: a path that passes just beyond an
+    /// edge's own snapping distance of a node, across longer triangles, leaves a short edge at
+    /// that node with a needle on each side; going through the node keeps the lips as close to the
+    /// blade as the fidelity bound asks. Returns whether any snapped.
+    fn snap_for_quality(&mut self, body: &Body, quad: &[Vec3; 4]) -> bool {
+        let bound = self.quality_bound_deg;
+        let x = &body.surface.position_in_world;
+        let mut snapped = false;
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            if self.best_template_quality(body, &a) >= bound {
+                continue;
+            }
+            for c in a.crossing.iter().flatten().map(|c| *c as usize) {
+                let crossing = self.crossings[c];
+                if !matches!(crossing.choice, Choice::Split) || !crossing.on_path {
+                    continue;
+                }
+                // The longest rest side of the triangles on the crossing's edge.
+                let local = self
+                    .affected
+                    .iter()
+                    .filter(|t| t.crossing.contains(&Some(c as u16)))
+                    .flat_map(|t| {
+                        let r = t
+                            .corners
+                            .map(|v| body.surface.homologue_in_body[v as usize]);
+                        [
+                            (r[1] - r[0]).norm(),
+                            (r[2] - r[1]).norm(),
+                            (r[0] - r[2]).norm(),
+                        ]
+                    })
+                    .fold(0.0, f64::max);
+                let tol = self.tolerance(local);
+                let (da, db) = (
+                    quad_distance(&x[crossing.a as usize], quad),
+                    quad_distance(&x[crossing.b as usize], quad),
+                );
+                let v = if da <= db { crossing.a } else { crossing.b };
+                if da.min(db) <= tol {
+                    self.crossings[c].choice = Choice::Snap(v);
+                    self.crossings[c].node = v;
+                    snapped = true;
+                }
+            }
+        }
+        snapped
+    }
+
     /// Slides the path's split nodes along their edges, within ¾ of the fidelity tolerance of the
     /// swept quad, where that raises the smallest angle of the templates around them: a path that
     /// cuts a corner off just beyond the snapping distance leaves a short edge, and moving its ends
@@ -1071,10 +1161,14 @@ impl Cutter {
             s.link_stiffness[i] *= 1.0 - fractions[idx];
             s.link_damping[i] *= 1.0 - fractions[idx];
         }
+        // The node is where the blade crossed the edge (MODEL.md §6: at the point itself), so a
+        // straight spring cut in two keeps its energy; its velocity is that of the mass it takes
+        // (momentum kept, kinetic energy not raised).
+        let at = |v: &[Vec3]| v[ia] * w[0] + v[ib] * w[1];
         s.push_node(
             NewNode {
-                position_in_world: weighted(&s.position_in_world),
-                next_position_in_world: weighted(&s.next_position_in_world),
+                position_in_world: at(&s.position_in_world),
+                next_position_in_world: at(&s.next_position_in_world),
                 velocity_in_world: weighted(&s.velocity_in_world),
                 mass,
                 homologue_in_body: s.homologue_in_body[ia] * w[0] + s.homologue_in_body[ib] * w[1],
