@@ -83,9 +83,12 @@ impl Invariants {
             "{context}: kinetic energy rose from {} to {kinetic}",
             self.kinetic
         );
-        // Quality below the bound is counted, not hidden: see the figures printed by the tests and
-        // the README (the bound is not met everywhere yet).
-        assert!(cutter.smallest_created_angle_deg > 0.0);
+        // Every triangle the cuts created at or above the quality bound.
+        assert_eq!(
+            cutter.counters.quality_misses, 0,
+            "{context}: a created triangle below {}° (smallest {}°)",
+            cutter.quality_bound_deg, cutter.smallest_created_angle_deg
+        );
     }
 }
 
@@ -715,6 +718,7 @@ fn random_blade_sessions_keep_every_invariant() {
     let mut rng = common::Rng(common::env_or("PALPA_SEED", 13));
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cut_sessions, mut pieces) = (0, 0);
+    let mut quality = [[0u64; 4]; 2];
     for session in 0..sessions {
         let subdivisions = 2 + session % 2;
         let fixed = session % 3 == 0;
@@ -815,9 +819,37 @@ script = [
         if cuts > 0 {
             cut_sessions += 1;
         }
+        // Quality: [created, below the bound, kept from a parent already below it, guard events],
+        // for the schemes that hold the cut's light nodes and for the plain symplectic one.
+        let class = usize::from(integrator == "symplectic");
+        for c in world.cutters.iter().flatten() {
+            quality[class][0] += c.counters.created_triangles;
+            quality[class][1] += c.counters.quality_misses;
+            quality[class][2] += c.counters.quality_inherited;
+        }
+        quality[class][3] += world.guards.iter().map(|g| g.events).sum::<u64>();
         pieces += world.bodies.len() - 1;
     }
-    println!("{sessions} random blade sessions: {cut_sessions} cut, {pieces} pieces");
+    for (name, [created, misses, inherited, guards]) in
+        ["multirate and implicit", "symplectic"].iter().zip(quality)
+    {
+        println!(
+            "{sessions} random blade sessions, {name}: {created} created triangles, {misses} \
+             below the quality bound, {inherited} keeping a corner already below it; {guards} \
+             guard events"
+        );
+    }
+    println!("{cut_sessions} of {sessions} sessions cut, {pieces} pieces");
+    // Under the schemes that hold its light nodes, a cut in a moving, deforming body keeps its
+    // created triangles above the bound but for rare ones: the goal is none, not met here (40
+    // sessions each with seeds 7, 13, 99, 2026: 0, 2, 2 and 6 of 2 362 to 3 226; the default run
+    // none) — this guards against going back. The plain symplectic scheme goes past its limit on
+    // those nodes (its guard acts thousands of times) and is only reported.
+    let [created, misses, ..] = quality[0];
+    assert!(
+        misses * 400 <= created,
+        "{misses} of {created} created triangles below the quality bound"
+    );
     assert!(
         cut_sessions >= sessions / 2,
         "only {cut_sessions} of {sessions} sessions cut"

@@ -59,8 +59,12 @@ pub struct CutCounters {
     pub refused: u64,
     /// Triangles the cuts created or rewrote (template children, flipped pairs).
     pub created_triangles: u64,
-    /// Created triangles below the quality bound (counted, never hidden).
+    /// Created triangles below the quality bound and below the smallest angle of the triangle they
+    /// came from (counted, never hidden).
     pub quality_misses: u64,
+    /// Created triangles below the quality bound that keep a corner angle of a triangle already
+    /// below it (one adaptive subdivision made, say): no split of that triangle can do better.
+    pub quality_inherited: u64,
     /// Transections of this body (it separated into bodies).
     pub transections: u64,
     /// Caps closing the openings of transections.
@@ -91,6 +95,10 @@ const FLIP_FLATNESS: f64 = 0.9;
 const SLIDE_STEP: f64 = 0.04;
 const SLIDE_STEPS: usize = 6;
 const SLIDE_RANGE: (f64, f64) = (0.2, 0.8);
+/// Least fraction of an edge from its ends at which a crossing may split it.
+const MIN_SPLIT_FRACTION: f64 = 0.05;
+/// Least share of a node's mass (before normalising) a copy made to open the surface takes.
+const MIN_COPY_SHARE: f64 = 0.1;
 /// Most tips kept per blade.
 const MAX_TIPS: usize = 8;
 
@@ -227,6 +235,9 @@ pub struct Cutter {
     copies: Vec<u32>,
     /// Triangles this step created (template children, and the triangles flips rewrote).
     created: Vec<u32>,
+    /// For each of `created`: the least angle it is held to, min(bound, smallest angle of the
+    /// triangle it came from) — a child keeps its parent's corner angles.
+    created_floor: Vec<f64>,
     /// Whether blades cut this body (`cutting` on; a cutter may serve tearing alone).
     pub blades: bool,
     /// Tearing, when on (it opens the surface with this cutter).
@@ -313,6 +324,7 @@ impl Cutter {
             fan: Vec::with_capacity(16 * MAX_CROSSINGS),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
             created: Vec::with_capacity(MAX_CREATED),
+            created_floor: Vec::with_capacity(MAX_CREATED),
             transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
             check_parts: false,
             blades: body.params.cutting.is_some(),
@@ -476,9 +488,13 @@ impl Cutter {
             }
             let tol = self.tolerance(edges.rest_length[k]);
             let (da, db) = (quad_distance(&xa, &quad), quad_distance(&xb, &quad));
-            let choice = if da <= tol && da <= db {
+            // A crossing within MIN_SPLIT_FRACTION of an end snaps to it whatever the distance:
+            // only an edge stretched far past its rest length (a body diverging before its
+            // guard acts) puts the end out of the tolerance there, and a split so near an end
+            // would leave a needle in the rest shape.
+            let choice = if (da <= tol && da <= db) || t < MIN_SPLIT_FRACTION {
                 Choice::Snap(a)
-            } else if db <= tol {
+            } else if db <= tol || t > 1.0 - MIN_SPLIT_FRACTION {
                 Choice::Snap(b)
             } else {
                 Choice::Split
@@ -557,6 +573,7 @@ impl Cutter {
         // Rewrite the triangles.
         let prestress = self.settings.prestress;
         self.created.clear();
+        self.created_floor.clear();
         for i in 0..self.affected.len() {
             let a = self.affected[i];
             self.apply_template(body, &a, prestress);
@@ -576,11 +593,14 @@ impl Cutter {
         // Edge flips where a created triangle is below the quality bound; the figures of quality.
         self.flip_for_quality(body, prestress);
         let h = &body.surface.homologue_in_body;
-        for &t in &self.created {
+        for (&t, &floor) in self.created.iter().zip(&self.created_floor) {
             let angle = min_angle_deg(&body.surface.triangles[t as usize].map(|v| h[v as usize]));
             self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
             self.counters.created_triangles += 1;
-            if angle < self.quality_bound_deg {
+            if angle < self.quality_bound_deg && angle >= floor {
+                self.counters.quality_inherited += 1;
+            }
+            if angle < floor {
                 self.counters.quality_misses += 1;
             }
         }
@@ -959,7 +979,6 @@ impl Cutter {
     /// blade as the fidelity bound asks. Returns whether any snapped.
     fn snap_for_quality(&mut self, body: &Body, quad: &[Vec3; 4]) -> bool {
         let bound = self.quality_bound_deg;
-        let x = &body.surface.position_in_world;
         let mut snapped = false;
         for i in 0..self.affected.len() {
             let a = self.affected[i];
@@ -972,14 +991,13 @@ impl Cutter {
                     continue;
                 }
                 // The longest rest side of the triangles on the crossing's edge.
+                let h = &body.surface.homologue_in_body;
                 let local = self
                     .affected
                     .iter()
                     .filter(|t| t.crossing.contains(&Some(c as u16)))
                     .flat_map(|t| {
-                        let r = t
-                            .corners
-                            .map(|v| body.surface.homologue_in_body[v as usize]);
+                        let r = t.corners.map(|v| h[v as usize]);
                         [
                             (r[1] - r[0]).norm(),
                             (r[2] - r[1]).norm(),
@@ -988,16 +1006,22 @@ impl Cutter {
                     })
                     .fold(0.0, f64::max);
                 let tol = self.tolerance(local);
+                let x = &body.surface.position_in_world;
                 let (da, db) = (
                     quad_distance(&x[crossing.a as usize], quad),
                     quad_distance(&x[crossing.b as usize], quad),
                 );
-                let v = if da <= db { crossing.a } else { crossing.b };
-                if da.min(db) <= tol {
-                    self.crossings[c].choice = Choice::Snap(v);
-                    self.crossings[c].node = v;
-                    snapped = true;
+                let (v, d) = if da <= db {
+                    (crossing.a, da)
+                } else {
+                    (crossing.b, db)
+                };
+                if d > tol {
+                    continue;
                 }
+                self.crossings[c].choice = Choice::Snap(v);
+                self.crossings[c].node = v;
+                snapped = true;
             }
         }
         snapped
@@ -1242,11 +1266,16 @@ impl Cutter {
             &mut inner,
         );
         let h = &body.surface.homologue_in_body;
+        let floor = self
+            .quality_bound_deg
+            .min(min_angle_deg(&a.corners.map(|v| h[v as usize])));
         let triangles = &mut body.surface.triangles;
         triangles[a.triangle as usize] = children[0];
         self.created.push(a.triangle);
+        self.created_floor.push(floor);
         for child in &children[1..count] {
             self.created.push(triangles.len() as u32);
+            self.created_floor.push(floor);
             triangles.push(*child);
         }
         let (k, c) = (body.params.surface_stiffness, body.params.surface_damping);
@@ -1329,6 +1358,9 @@ impl Cutter {
                 };
                 let h = &body.surface.homologue_in_body;
                 let length = (h[c as usize] - h[w as usize]).norm() * (1.0 - prestress);
+                let neighbour_floor = self.quality_bound_deg.min(min_angle_deg(
+                    &body.surface.triangles[n].map(|v| h[v as usize]),
+                ));
                 let (stiffness, damping) =
                     (body.params.surface_stiffness, body.params.surface_damping);
                 let e = &mut body.edges;
@@ -1342,6 +1374,7 @@ impl Cutter {
                 triangles[n] = [w, b, c];
                 if !self.created.contains(&(n as u32)) && self.created.len() < MAX_CREATED {
                     self.created.push(n as u32);
+                    self.created_floor.push(neighbour_floor);
                 }
                 flipped = true;
             }
@@ -1579,6 +1612,15 @@ impl Cutter {
             let t = tris[self.fan[start + i].1 as usize];
             let [a, b, c] = t.map(|w| h[w as usize]);
             area[group_of[i]] += 0.5 * (b - a).cross(&(c - a)).norm();
+        }
+        // Each group's share: its rest area's, but at least MIN_COPY_SHARE of the node before the
+        // shares are normalised — a copy on a sliver of the fan would otherwise be so light that
+        // no integrator's step could hold its springs.
+        let total: f64 = area[..groups].iter().sum();
+        if total > 0.0 {
+            for a in &mut area[..groups] {
+                *a = (*a / total).max(MIN_COPY_SHARE);
+            }
         }
         let total: f64 = area[..groups].iter().sum();
         let iv = v as usize;
