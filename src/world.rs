@@ -512,6 +512,8 @@ impl World {
         let world_integrator = self.params.integrator;
         let tool_count = self.tools.len();
         self.build_spares(dt, world_integrator, tool_count);
+        self.attachments
+            .reserve_bodies(self.bodies.len() + self.spares.len());
         let spare_triangles = self
             .spares
             .iter()
@@ -638,6 +640,7 @@ impl World {
         use crate::topology::transect::MAX_PARTS;
         let dt = self.params.dt;
         let tick = self.tick + 1;
+        let first_piece = self.bodies.len();
         let Some(cutter) = self.cutters[b].as_mut() else {
             return;
         };
@@ -682,6 +685,13 @@ impl World {
                 .transector
                 .separate(body, &mut refs[..found], min_angle, &self.params.gravity);
         cutter.transection_counts(&result);
+        // Ties on the body follow their nodes, into the pieces too (pushed below in spare order).
+        let transector = &cutter.transector;
+        self.attachments.renumber(b, |v| {
+            transector
+                .new_place(v, result.kept)
+                .map(|(k, index)| (if k == 0 { b } else { first_piece + k - 1 }, index))
+        });
         cutter.renumbered();
         self.solvers[b].topology_changed(body, dt);
         self.kernels[b].invalidate();

@@ -148,6 +148,43 @@ impl Attachments {
         sum
     }
 
+    /// The body ends of attachment `a`'s ties, as `(body, node)` (they follow their nodes through
+    /// transections).
+    pub fn tied_nodes(&self, a: usize) -> impl Iterator<Item = (usize, u32)> + '_ {
+        self.ties[self.start[a]..self.start[a + 1]]
+            .iter()
+            .map(|t| (t.body as usize, t.node))
+    }
+
+    /// Makes room for the work of `count` bodies (the scene's and the spares a transection may
+    /// fill), so that a tie that follows a node into a new body is counted there. Setup only.
+    pub fn reserve_bodies(&mut self, count: usize) {
+        if self.work.len() < count {
+            self.work.resize(count, 0.0);
+        }
+    }
+
+    /// Follows a renumbering of body `body`'s nodes (a transection): every tie end on it moves to
+    /// where `place` puts its node — `(body, node)`, the same body or a new one. A tie whose node
+    /// has no place (cannot happen: ties hold nodes of the mesh the transection split) is left
+    /// as it was. Allocation-free.
+    pub fn renumber(&mut self, body: usize, place: impl Fn(u32) -> Option<(usize, u32)>) {
+        for t in &mut self.ties {
+            if t.body as usize == body
+                && let Some((b, n)) = place(t.node)
+            {
+                t.body = b as u32;
+                t.node = n;
+            }
+            if t.other_body as usize == body
+                && let Some((b, n)) = place(t.other_node)
+            {
+                t.other_body = b as u32;
+                t.other_node = n;
+            }
+        }
+    }
+
     /// Work the ties did on body `b` this tick, in absolute value (J).
     pub fn work_on(&self, b: usize) -> f64 {
         self.work.get(b).copied().unwrap_or(0.0)

@@ -1119,26 +1119,6 @@ impl Ctx<'_> {
                 Some(o)
             }
         };
-        for b in std::iter::once(body).chain(to) {
-            let params = &bodies[b].params;
-            let changing = if params.cutting.is_some() {
-                Some("cutting")
-            } else if params.tearing.is_some() {
-                Some("tearing")
-            } else {
-                None
-            };
-            if let Some(key) = changing {
-                return Err(self.error(
-                    table.span(),
-                    format!(
-                        "attachment `{name}`: body `{}` has `{key}` on; attachments to a body that can be cut or torn apart are not supported yet",
-                        bodies[b].name
-                    ),
-                ));
-            }
-        }
-
         // The region, and its nodes' masses (the surface mass spread by area, as the body does).
         let spec = &bodies[body];
         let masses = |b: &BodySpec| -> Vec<f64> {

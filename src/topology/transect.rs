@@ -260,6 +260,19 @@ impl Transector {
         count
     }
 
+    /// Where node `v` of the body went in the last [`Transector::separate`] that kept part `kept`:
+    /// `(0, index)` in the body itself, `(1 + j, index)` in the j-th spare; `None` for a node the
+    /// separation did not number (a cap node, or past the mesh it split).
+    pub fn new_place(&self, v: u32, kept: usize) -> Option<(usize, u32)> {
+        let (&part, &index) = (self.part.get(v as usize)?, self.new_index.get(v as usize)?);
+        let part = part as usize;
+        Some(if part == kept {
+            (0, index)
+        } else {
+            (1 + part - usize::from(part > kept), index)
+        })
+    }
+
     #[allow(clippy::needless_range_loop)] // per-part arrays indexed together
     /// Caps the open loops through marked nodes, splits the surface mass of each part between its
     /// nodes and caps, and moves every part but the heaviest into `spares` (in part order; one spare
