@@ -842,7 +842,7 @@ script = [
     println!("{cut_sessions} of {sessions} sessions cut, {pieces} pieces");
     // Under the schemes that hold its light nodes, a cut in a moving, deforming body keeps its
     // created triangles above the bound but for rare ones: the goal is none, not met here (40
-    // sessions each with seeds 7, 13, 99, 2026: 0, 2, 2 and 6 of 2 362 to 3 226; the default run
+    // sessions each with seeds 7, 13, 99, 2026: 0, 2, 2 and 4 of 2 362 to 3 226; the default run
     // none) — this guards against going back. The plain symplectic scheme goes past its limit on
     // those nodes (its guard acts thousands of times) and is only reported.
     let [created, misses, ..] = quality[0];

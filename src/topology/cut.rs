@@ -95,6 +95,8 @@ const FLIP_FLATNESS: f64 = 0.9;
 const SLIDE_STEP: f64 = 0.04;
 const SLIDE_STEPS: usize = 6;
 const SLIDE_RANGE: (f64, f64) = (0.2, 0.8);
+/// Rounding allowed when a created triangle is held to its parent's smallest angle (degrees).
+const FLOOR_ROUNDING_DEG: f64 = 1e-6;
 /// Least fraction of an edge from its ends at which a crossing may split it.
 const MIN_SPLIT_FRACTION: f64 = 0.05;
 /// Least share of a node's mass (before normalising) a copy made to open the surface takes.
@@ -597,6 +599,8 @@ impl Cutter {
             let angle = min_angle_deg(&body.surface.triangles[t as usize].map(|v| h[v as usize]));
             self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
             self.counters.created_triangles += 1;
+            // A child keeping its parent's smallest corner measures it with other roundings.
+            let floor = floor - FLOOR_ROUNDING_DEG;
             if angle < self.quality_bound_deg && angle >= floor {
                 self.counters.quality_inherited += 1;
             }
