@@ -486,3 +486,88 @@ script = [
         centre(cut_away)
     );
 }
+
+/// A tube tied to the world at both ends and cut across in the middle: each end's ties follow their
+/// nodes into their own piece — one stays in `tube`, the other moves into the new body `tube.1` —
+/// each tie end where its node was, and each piece held by its own ligament.
+#[test]
+fn a_tube_tied_at_both_ends_and_cut_across_keeps_each_tie_on_its_own_piece() {
+    let scene = std::fs::read_to_string(common::repo_root().join("scenes/transection.toml"))
+        .expect("scenes/transection.toml");
+    let text = format!(
+        "{scene}
+[[attachment]]
+name = \"left\"
+body = \"tube\"
+at = [-0.07, 0.0, 0.0]
+radius = 0.012
+to = \"world\"
+stiffness = 20.0
+damping = 0.01
+
+[[attachment]]
+name = \"right\"
+body = \"tube\"
+at = [0.07, 0.0, 0.0]
+radius = 0.012
+to = \"world\"
+stiffness = 20.0
+damping = 0.01
+"
+    );
+    let mut world = World::from_scene(&common::scene(&text));
+    let places = |world: &World, a: usize| -> Vec<(usize, Vec3)> {
+        world
+            .attachments()
+            .tied_nodes(a)
+            .map(|(b, n)| (b, world.bodies[b].surface.position_in_world[n as usize]))
+            .collect()
+    };
+    let mut before = [places(&world, 0), places(&world, 1)];
+    let mut separated = false;
+    for _ in 0..1500 {
+        if world.bodies.len() == 1 {
+            before = [places(&world, 0), places(&world, 1)];
+        }
+        world.step();
+        if world.bodies.len() > 1 {
+            separated = true;
+            break;
+        }
+    }
+    assert!(separated, "the tube was not cut through");
+    let after = [places(&world, 0), places(&world, 1)];
+    let mut body_of = [0; 2];
+    for a in 0..2 {
+        assert_eq!(before[a].len(), after[a].len());
+        body_of[a] = after[a][0].0;
+        for ((_, p), (b, q)) in before[a].iter().zip(&after[a]) {
+            assert_eq!(*b, body_of[a], "attachment {a} split across bodies");
+            assert!(
+                (p - q).norm() < 1e-3,
+                "attachment {a}: a tie end moved from {p:?} to {q:?} in the transection"
+            );
+        }
+    }
+    println!(
+        "left ties on `{}`, right ties on `{}`; pulls {:.4} / {:.4} N",
+        world.bodies[body_of[0]].name,
+        world.bodies[body_of[1]].name,
+        world.attachments().force_on_body(0).norm(),
+        world.attachments().force_on_body(1).norm()
+    );
+    assert_ne!(body_of[0], body_of[1], "both ends' ties on one piece");
+    // A few more ticks: each piece is held by its own ligament, and nothing breaks.
+    for _ in 0..200 {
+        world.step();
+    }
+    for (a, &b) in body_of.iter().enumerate() {
+        assert!(world.bodies[b].is_finite());
+        let pull = world.attachments().force_on(b);
+        assert!(
+            (pull - world.attachments().force_on_body(a)).norm() <= 1e-12,
+            "piece `{}` feels another attachment's ties",
+            world.bodies[b].name
+        );
+    }
+}
