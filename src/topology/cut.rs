@@ -235,11 +235,10 @@ pub struct Cutter {
     /// Set when a cut step opened edges: the world then looks for parts.
     pub check_parts: bool,
     copies: Vec<u32>,
-    /// Triangles this step created (template children, and the triangles flips rewrote).
-    created: Vec<u32>,
-    /// For each of `created`: the least angle it is held to, min(bound, smallest angle of the
-    /// triangle it came from) — a child keeps its parent's corner angles.
-    created_floor: Vec<f64>,
+    /// Triangles this step created (template children, and the triangles flips rewrote), each with
+    /// the least angle it is held to: min(bound, smallest angle of the triangle it came from) — a
+    /// child keeps its parent's corner angles.
+    created: Vec<(u32, f64)>,
     /// Whether blades cut this body (`cutting` on; a cutter may serve tearing alone).
     pub blades: bool,
     /// Tearing, when on (it opens the surface with this cutter).
@@ -326,7 +325,6 @@ impl Cutter {
             fan: Vec::with_capacity(16 * MAX_CROSSINGS),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
             created: Vec::with_capacity(MAX_CREATED),
-            created_floor: Vec::with_capacity(MAX_CREATED),
             transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
             check_parts: false,
             blades: body.params.cutting.is_some(),
@@ -575,7 +573,6 @@ impl Cutter {
         // Rewrite the triangles.
         let prestress = self.settings.prestress;
         self.created.clear();
-        self.created_floor.clear();
         for i in 0..self.affected.len() {
             let a = self.affected[i];
             self.apply_template(body, &a, prestress);
@@ -595,7 +592,7 @@ impl Cutter {
         // Edge flips where a created triangle is below the quality bound; the figures of quality.
         self.flip_for_quality(body, prestress);
         let h = &body.surface.homologue_in_body;
-        for (&t, &floor) in self.created.iter().zip(&self.created_floor) {
+        for &(t, floor) in &self.created {
             let angle = min_angle_deg(&body.surface.triangles[t as usize].map(|v| h[v as usize]));
             self.smallest_created_angle_deg = self.smallest_created_angle_deg.min(angle);
             self.counters.created_triangles += 1;
@@ -1275,11 +1272,9 @@ impl Cutter {
             .min(min_angle_deg(&a.corners.map(|v| h[v as usize])));
         let triangles = &mut body.surface.triangles;
         triangles[a.triangle as usize] = children[0];
-        self.created.push(a.triangle);
-        self.created_floor.push(floor);
+        self.created.push((a.triangle, floor));
         for child in &children[1..count] {
-            self.created.push(triangles.len() as u32);
-            self.created_floor.push(floor);
+            self.created.push((triangles.len() as u32, floor));
             triangles.push(*child);
         }
         let (k, c) = (body.params.surface_stiffness, body.params.surface_damping);
@@ -1297,7 +1292,7 @@ impl Cutter {
         for _round in 0..FLIP_ROUNDS {
             let mut flipped = false;
             for i in 0..self.created.len() {
-                let index = self.created[i] as usize;
+                let index = self.created[i].0 as usize;
                 let t = body.surface.triangles[index];
                 let h = &body.surface.homologue_in_body;
                 let rest = |v: u32| h[v as usize];
@@ -1376,9 +1371,10 @@ impl Cutter {
                 let triangles = &mut body.surface.triangles;
                 triangles[index] = [a, w, c];
                 triangles[n] = [w, b, c];
-                if !self.created.contains(&(n as u32)) && self.created.len() < MAX_CREATED {
-                    self.created.push(n as u32);
-                    self.created_floor.push(neighbour_floor);
+                if !self.created.iter().any(|&(t, _)| t == n as u32)
+                    && self.created.len() < MAX_CREATED
+                {
+                    self.created.push((n as u32, neighbour_floor));
                 }
                 flipped = true;
             }
