@@ -813,6 +813,27 @@ pub(crate) mod avx {
         }
     }
 
+    /// `b − a`, component by component.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub(crate) fn sub3(b: [__m256d; 3], a: [__m256d; 3]) -> [__m256d; 3] {
+        [
+            _mm256_sub_pd(b[0], a[0]),
+            _mm256_sub_pd(b[1], a[1]),
+            _mm256_sub_pd(b[2], a[2]),
+        ]
+    }
+
+    /// `(x₀y₀ + x₁y₁) + x₂y₂` per lane (the scalar path's order).
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub(crate) fn dot3(x: [__m256d; 3], y: [__m256d; 3]) -> __m256d {
+        _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(x[0], y[0]), _mm256_mul_pd(x[1], y[1])),
+            _mm256_mul_pd(x[2], y[2]),
+        )
+    }
+
     /// The AVX edge pass: the scalar pass's operations, four lanes at a time.
     ///
     /// # Safety
@@ -845,12 +866,8 @@ pub(crate) mod avx {
                     gather3(vp, gb),
                 )
             };
-            let dx = _mm256_sub_pd(xb[0], xa[0]);
-            let dy = _mm256_sub_pd(xb[1], xa[1]);
-            let dz = _mm256_sub_pd(xb[2], xa[2]);
-            let ux = _mm256_sub_pd(vb[0], va[0]);
-            let uy = _mm256_sub_pd(vb[1], va[1]);
-            let uz = _mm256_sub_pd(vb[2], va[2]);
+            let d = sub3(xb, xa);
+            let u = sub3(vb, va);
             let (rest, k, c) = unsafe {
                 let rest = _mm256_loadu_pd(rest.as_ptr());
                 match batches.uniform {
@@ -865,18 +882,12 @@ pub(crate) mod avx {
                     }
                 }
             };
-            let length2 = _mm256_add_pd(
-                _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
-                _mm256_mul_pd(dz, dz),
-            );
+            let length2 = dot3(d, d);
             let length = _mm256_sqrt_pd(length2);
             let valid = _mm256_cmp_pd::<_CMP_GT_OQ>(length2, tiny);
             let inverse = _mm256_mul_pd(length, _mm256_div_pd(one, length2));
             let stretch = _mm256_sub_pd(length, rest);
-            let along = _mm256_add_pd(
-                _mm256_add_pd(_mm256_mul_pd(ux, dx), _mm256_mul_pd(uy, dy)),
-                _mm256_mul_pd(uz, dz),
-            );
+            let along = dot3(u, d);
             let magnitude = _mm256_add_pd(
                 _mm256_mul_pd(k, stretch),
                 _mm256_mul_pd(_mm256_mul_pd(c, along), inverse),
@@ -885,9 +896,9 @@ pub(crate) mod avx {
             let e = _mm256_and_pd(_mm256_mul_pd(_mm256_mul_pd(k, stretch), stretch), valid);
             energy_lanes = _mm256_add_pd(energy_lanes, _mm256_mul_pd(half, e));
             let (px, py, pz) = (
-                _mm256_mul_pd(dx, scale),
-                _mm256_mul_pd(dy, scale),
-                _mm256_mul_pd(dz, scale),
+                _mm256_mul_pd(d[0], scale),
+                _mm256_mul_pd(d[1], scale),
+                _mm256_mul_pd(d[2], scale),
             );
             // Lanes as [x y z 0] vectors: one add to each end's accumulator.
             let t0 = _mm256_unpacklo_pd(px, py);

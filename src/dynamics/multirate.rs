@@ -705,7 +705,7 @@ fn add_spring_forces(e: &crate::body::Edges, x: &[Vec3], v: &[Vec3], f: &mut [Ve
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use crate::Vec3;
-    use crate::dynamics::kernel::avx::gather3;
+    use crate::dynamics::kernel::avx::{dot3, gather3, sub3};
     use std::arch::x86_64::*;
 
     /// The springs in blocks of four, as [`super::spring_pull`] computes one: d = x_b − x_a,
@@ -747,26 +747,12 @@ mod avx {
                     gather3(vp, &b),
                 )
             };
-            let d = [
-                _mm256_sub_pd(xb[0], xa[0]),
-                _mm256_sub_pd(xb[1], xa[1]),
-                _mm256_sub_pd(xb[2], xa[2]),
-            ];
-            let length2 = _mm256_add_pd(
-                _mm256_add_pd(_mm256_mul_pd(d[0], d[0]), _mm256_mul_pd(d[1], d[1])),
-                _mm256_mul_pd(d[2], d[2]),
-            );
+            let d = sub3(xb, xa);
+            let length2 = dot3(d, d);
             let length = _mm256_sqrt_pd(length2);
             let inverse = _mm256_div_pd(one, length);
-            let u = [
-                _mm256_sub_pd(vb[0], va[0]),
-                _mm256_sub_pd(vb[1], va[1]),
-                _mm256_sub_pd(vb[2], va[2]),
-            ];
-            let along = _mm256_add_pd(
-                _mm256_add_pd(_mm256_mul_pd(u[0], d[0]), _mm256_mul_pd(u[1], d[1])),
-                _mm256_mul_pd(u[2], d[2]),
-            );
+            let u = sub3(vb, va);
+            let along = dot3(u, d);
             // SAFETY: k0 + 4 ≤ e.len(), the length of each of these arrays.
             let (k, c, rest) = unsafe {
                 (
