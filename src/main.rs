@@ -72,6 +72,10 @@ enum Command {
         /// Run the daemon with `--rt` (SCHED_FIFO, locked memory, a pinned core).
         #[arg(long)]
         rt: bool,
+        /// Show the session live to Foxglove on [HOST:]PORT (see `palpa serve --live`).
+        #[cfg(feature = "live")]
+        #[arg(long, value_name = "[HOST:]PORT")]
+        live: Option<String>,
     },
 }
 
@@ -118,6 +122,12 @@ struct ServeArgs {
     #[cfg(feature = "record")]
     #[arg(long)]
     record: Option<PathBuf>,
+    /// Show the session live to Foxglove: a WebSocket server on [HOST:]PORT (host 127.0.0.1 when
+    /// omitted; 0.0.0.0 for other machines; port 0 picks a free one). Open ws://HOST:PORT in
+    /// Foxglove ("Open connection", Foxglove WebSocket).
+    #[cfg(feature = "live")]
+    #[arg(long, value_name = "[HOST:]PORT")]
+    live: Option<String>,
 }
 
 /// `FROM:COUNT` (COUNT a number or `all`) of `--inject-ipc-faults`.
@@ -170,7 +180,17 @@ fn main() -> Result<()> {
             duration,
             scene,
             rt,
-        } => demo(duration, &scene, rt),
+            #[cfg(feature = "live")]
+            live,
+        } => demo(
+            duration,
+            &scene,
+            rt,
+            #[cfg(feature = "live")]
+            live.as_deref(),
+            #[cfg(not(feature = "live"))]
+            None,
+        ),
     }
 }
 
@@ -485,6 +505,24 @@ fn serve(args: ServeArgs) -> Result<()> {
     let sim_stop = stop.clone();
     #[cfg(feature = "record")]
     let record = args.record.clone();
+    // The live view listens before the loop starts, so its address can be printed (and a wrong one
+    // refused) at once.
+    #[cfg(feature = "live")]
+    let live = match &args.live {
+        Some(text) => {
+            use palpa::record::live::{LiveSettings, LiveView, parse_address};
+            let address = parse_address(text).map_err(|e| anyhow::anyhow!(e))?;
+            let live =
+                LiveView::start(address, &World::from_scene(&scene), LiveSettings::default())
+                    .map_err(|e| anyhow::anyhow!(e))?;
+            println!(
+                "palpa serve: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
+                live.url()
+            );
+            Some(live)
+        }
+        None => None,
+    };
     let handle = std::thread::Builder::new()
         .name("palpa-sim".into())
         .spawn(move || -> Result<_, String> {
@@ -510,11 +548,26 @@ fn serve(args: ServeArgs) -> Result<()> {
             };
             #[cfg(not(feature = "record"))]
             let sink = palpa::daemon::sink::RecordSink::none();
+            #[cfg(feature = "live")]
+            let sink = match live {
+                Some(live) => sink.with_live(live),
+                None => sink,
+            };
             let served = serve(&scene, &options, sim_stop, &sink).map_err(|e| e.to_string());
             // The recording is finished whichever way the loop ended (and, should this thread
             // panic, by the recorder's Drop while unwinding).
             #[cfg(feature = "record")]
-            match sink.finish() {
+            let (recorded, live) = sink.finish_all();
+            #[cfg(feature = "record")]
+            if let Some(live) = live {
+                let total: u64 = live.messages.values().sum();
+                println!(
+                    "palpa serve: live view published {total} messages to {} viewers ({} records dropped)",
+                    live.viewers, live.dropped
+                );
+            }
+            #[cfg(feature = "record")]
+            match recorded {
                 Ok(Some(recording)) => {
                     let total: u64 = recording.messages.values().sum();
                     println!(
@@ -562,7 +615,7 @@ fn serve(args: ServeArgs) -> Result<()> {
 }
 
 #[cfg(feature = "ipc")]
-fn demo(duration: f64, scene_name: &str, rt: bool) -> Result<()> {
+fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result<()> {
     use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
     use palpa::ipc::services::{create_node, stats_service};
     use std::io::{IsTerminal, Write};
@@ -598,6 +651,21 @@ fn demo(duration: f64, scene_name: &str, rt: bool) -> Result<()> {
     let mut serve_args = vec!["serve", "--prefix", &prefix, scene_name];
     if rt {
         serve_args.push("--rt");
+    }
+    if let Some(address) = live {
+        #[cfg(feature = "live")]
+        {
+            let parsed =
+                palpa::record::live::parse_address(address).map_err(|e| anyhow::anyhow!(e))?;
+            let mut shown = parsed;
+            if shown.ip().is_unspecified() {
+                shown.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
+            }
+            println!(
+                "palpa demo: live view: open ws://{shown} in Foxglove (Open connection, Foxglove WebSocket)"
+            );
+        }
+        serve_args.extend(["--live", address]);
     }
     let daemon = Process::new(&exe)
         .args(&serve_args)

@@ -23,12 +23,18 @@ pub mod event {
     pub const BODY_ADDED: i32 = 9;
 }
 
-/// The recording side of a session.
+/// The recording side of a session: a recorder when the session is recorded (feature `record`), a
+/// live view when it is watched (feature `live`); each gets every record.
 #[derive(Default)]
 pub struct RecordSink {
     #[cfg(feature = "record")]
     recorder: Option<crate::record::recorder::Recorder>,
+    #[cfg(feature = "live")]
+    live: Option<crate::record::live::LiveView>,
 }
+
+#[cfg(feature = "record")]
+use crate::record::recorder::Record;
 
 impl RecordSink {
     /// Records nothing.
@@ -41,20 +47,44 @@ impl RecordSink {
     pub fn to(recorder: crate::record::recorder::Recorder) -> Self {
         Self {
             recorder: Some(recorder),
+            ..Self::default()
+        }
+    }
+
+    /// Also shows the session live on `live`.
+    #[cfg(feature = "live")]
+    pub fn with_live(mut self, live: crate::record::live::LiveView) -> Self {
+        self.live = Some(live);
+        self
+    }
+
+    /// The live view, if the session has one.
+    #[cfg(feature = "live")]
+    pub fn live(&self) -> Option<&crate::record::live::LiveView> {
+        self.live.as_ref()
+    }
+
+    /// Hands the record `make` builds to the recorder and to the live view (built once for each).
+    #[cfg(feature = "record")]
+    fn each(&self, make: impl Fn() -> Record) {
+        if let Some(r) = &self.recorder {
+            r.push(make());
+        }
+        #[cfg(feature = "live")]
+        if let Some(l) = &self.live {
+            l.push(make());
         }
     }
 
     /// A pose used for tool `tool`, applied before stepping from `tick`.
     pub fn input(&self, tick: u64, tool: usize, pose: &ToolPoseV1, receive_wall_time_ns: u64) {
         #[cfg(feature = "record")]
-        if let Some(r) = &self.recorder {
-            r.push(crate::record::recorder::Record::Input {
-                tick,
-                tool: tool as u16,
-                pose: *pose,
-                receive_wall_time_ns,
-            });
-        }
+        self.each(|| Record::Input {
+            tick,
+            tool: tool as u16,
+            pose: *pose,
+            receive_wall_time_ns,
+        });
         #[cfg(not(feature = "record"))]
         let _ = (tick, tool, pose, receive_wall_time_ns);
     }
@@ -62,12 +92,10 @@ impl RecordSink {
     /// The feedback of tool `tool` after a step.
     pub fn feedback(&self, tool: usize, feedback: &ToolFeedbackV1) {
         #[cfg(feature = "record")]
-        if let Some(r) = &self.recorder {
-            r.push(crate::record::recorder::Record::Feedback {
-                tool: tool as u16,
-                feedback: *feedback,
-            });
-        }
+        self.each(|| Record::Feedback {
+            tool: tool as u16,
+            feedback: *feedback,
+        });
         #[cfg(not(feature = "record"))]
         let _ = (tool, feedback);
     }
@@ -78,6 +106,10 @@ impl RecordSink {
         if let Some(r) = &self.recorder {
             r.push_mesh(header, bytes);
         }
+        #[cfg(feature = "live")]
+        if let Some(l) = &self.live {
+            l.push_mesh(header, bytes);
+        }
         #[cfg(not(feature = "record"))]
         let _ = (header, bytes);
     }
@@ -85,9 +117,7 @@ impl RecordSink {
     /// Loop statistics.
     pub fn stats(&self, stats: &StatsV1) {
         #[cfg(feature = "record")]
-        if let Some(r) = &self.recorder {
-            r.push(crate::record::recorder::Record::Stats(*stats));
-        }
+        self.each(|| Record::Stats(*stats));
         #[cfg(not(feature = "record"))]
         let _ = stats;
     }
@@ -95,13 +125,11 @@ impl RecordSink {
     /// An event (`kind` from [`event`]); `tool` is `None` for the whole session.
     pub fn event(&self, tick: u64, kind: i32, tool: Option<usize>) {
         #[cfg(feature = "record")]
-        if let Some(r) = &self.recorder {
-            r.push(crate::record::recorder::Record::Event {
-                tick,
-                kind,
-                tool: tool.map_or(u16::MAX, |t| t as u16),
-            });
-        }
+        self.each(|| Record::Event {
+            tick,
+            kind,
+            tool: tool.map_or(u16::MAX, |t| t as u16),
+        });
         #[cfg(not(feature = "record"))]
         let _ = (tick, kind, tool);
     }
@@ -109,13 +137,11 @@ impl RecordSink {
     /// The divergence guard restored body `body` (for `cause`) in the step that ended at `tick`.
     pub fn guard(&self, tick: u64, body: usize, cause: crate::dynamics::guard::GuardCause) {
         #[cfg(feature = "record")]
-        if let Some(r) = &self.recorder {
-            r.push(crate::record::recorder::Record::Guard {
-                tick,
-                body: body.min(u16::MAX as usize) as u16,
-                cause,
-            });
-        }
+        self.each(|| Record::Guard {
+            tick,
+            body: body.min(u16::MAX as usize) as u16,
+            cause,
+        });
         #[cfg(not(feature = "record"))]
         let _ = (tick, body, cause);
     }
@@ -125,12 +151,12 @@ impl RecordSink {
     pub fn bodies_added(&self, world: &crate::world::World, known: &mut usize) {
         while *known < world.bodies.len() {
             #[cfg(feature = "record")]
-            if let Some(r) = &self.recorder {
+            {
                 let name = world.bodies[*known].name.as_bytes();
                 let mut buffer = [0u8; crate::record::recorder::MAX_BODY_NAME];
                 let len = name.len().min(buffer.len());
                 buffer[..len].copy_from_slice(&name[..len]);
-                r.push(crate::record::recorder::Record::BodyAdded {
+                self.each(|| Record::BodyAdded {
                     tick: world.tick,
                     body: (*known).min(u16::MAX as usize) as u16,
                     name: buffer,
@@ -141,7 +167,7 @@ impl RecordSink {
         }
     }
 
-    /// Records dropped so far.
+    /// Records the recorder dropped so far.
     pub fn dropped(&self) -> u64 {
         #[cfg(feature = "record")]
         if let Some(r) = &self.recorder {
@@ -150,12 +176,38 @@ impl RecordSink {
         0
     }
 
-    /// Closes the recording; returns the messages written per topic and the drops.
+    /// Closes the recording (returns the messages written per topic and the drops) and stops the
+    /// live view (see [`RecordSink::finish_all`] for its figures).
     #[cfg(feature = "record")]
     pub fn finish(self) -> Result<Option<crate::record::recorder::RecordingSummary>, String> {
-        match self.recorder {
+        self.finish_all().0
+    }
+
+    /// Closes the recording and stops the live view; returns what each did.
+    #[cfg(feature = "record")]
+    #[allow(clippy::type_complexity)]
+    pub fn finish_all(
+        self,
+    ) -> (
+        Result<Option<crate::record::recorder::RecordingSummary>, String>,
+        Option<LiveSummary>,
+    ) {
+        let recording = match self.recorder {
             Some(r) => r.finish().map(Some),
             None => Ok(None),
-        }
+        };
+        #[cfg(feature = "live")]
+        let live = self.live.map(|l| l.finish());
+        #[cfg(not(feature = "live"))]
+        let live = None;
+        (recording, live)
     }
 }
+
+/// What a live view did (feature `live`; an empty stand-in without it).
+#[cfg(feature = "live")]
+pub use crate::record::live::LiveSummary;
+/// What a live view did (feature `live`; an empty stand-in without it).
+#[cfg(not(feature = "live"))]
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LiveSummary;

@@ -10,6 +10,8 @@ pub mod proto {
 pub const DESCRIPTOR_SET: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/palpa_descriptor_set.bin"));
 
+#[cfg(feature = "live")]
+pub mod live;
 pub mod reader;
 pub mod recorder;
 pub mod replay;

@@ -123,11 +123,113 @@ pub struct RecordingSummary {
     pub dropped: u64,
 }
 
+/// The tick's side of a bounded hand-over of records to a thread of its own (the recorder's writer,
+/// the live view's publisher): a lock-free queue of records and a pool of mesh buffers filled at
+/// start. Pushing never allocates, and never blocks unless waiting was asked for; a record that does
+/// not fit is dropped and counted.
+pub struct RecordQueue {
+    pub(crate) queue: Arc<ArrayQueue<Record>>,
+    pub(crate) pool: Arc<ArrayQueue<Vec<u8>>>,
+    pub(crate) dropped: Arc<AtomicU64>,
+}
+
+impl RecordQueue {
+    /// Room for `capacity` records and `mesh_buffers` mesh messages of up to `mesh_bytes` bytes.
+    pub fn new(capacity: usize, mesh_buffers: usize, mesh_bytes: usize) -> Self {
+        let pool = Arc::new(ArrayQueue::new(mesh_buffers.max(1)));
+        for _ in 0..mesh_buffers.max(1) {
+            let _ = pool.push(Vec::with_capacity(mesh_bytes));
+        }
+        Self {
+            queue: Arc::new(ArrayQueue::new(capacity.max(1))),
+            pool,
+            dropped: Arc::new(AtomicU64::new(0)),
+        }
+    }
+
+    /// The same queue, for the consuming thread.
+    pub(crate) fn share(&self) -> Self {
+        Self {
+            queue: self.queue.clone(),
+            pool: self.pool.clone(),
+            dropped: self.dropped.clone(),
+        }
+    }
+
+    /// Hands `record` over; with `wait` (while `wait` says the consumer still runs) waits for room
+    /// instead of dropping. Returns false (and counts it) when it was dropped.
+    pub fn push(&self, record: Record, wait: &dyn Fn() -> bool) -> bool {
+        let mut record = record;
+        loop {
+            match self.queue.push(record) {
+                Err(rejected) if wait() => {
+                    record = rejected;
+                    std::thread::yield_now();
+                }
+                Ok(()) => return true,
+                Err(rejected) => {
+                    if let Record::Mesh { data, .. } = rejected {
+                        let _ = self.pool.push(data);
+                    }
+                    self.dropped.fetch_add(1, Ordering::Relaxed);
+                    return false;
+                }
+            }
+        }
+    }
+
+    /// Copies a mesh message into a pooled buffer and hands it over (see [`RecordQueue::push`]);
+    /// counts a drop when no buffer is free. Never allocates: buffers were sized for the largest
+    /// message at start.
+    pub fn push_mesh(&self, header: &MeshHeaderV1, bytes: &[u8], wait: &dyn Fn() -> bool) -> bool {
+        let mut buffer = self.pool.pop();
+        while buffer.is_none() && wait() {
+            std::thread::yield_now();
+            buffer = self.pool.pop();
+        }
+        let Some(mut data) = buffer else {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return false;
+        };
+        data.clear();
+        data.extend_from_slice(bytes);
+        self.push(
+            Record::Mesh {
+                header: *header,
+                data,
+            },
+            wait,
+        )
+    }
+
+    /// Records dropped so far.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+/// The largest mesh message `world` can produce (its bodies, and the spare bodies a transection
+/// may add), in bytes.
+pub fn largest_mesh_message(world: &World) -> usize {
+    let (spare_vertices, spare_triangles) = world.spare_mesh_capacity();
+    world
+        .bodies
+        .iter()
+        .map(|b| {
+            let (vertices, triangles) = b.mesh_capacity();
+            crate::display::max_message_bytes(vertices, triangles)
+        })
+        .chain(std::iter::once(crate::display::max_message_bytes(
+            spare_vertices,
+            spare_triangles,
+        )))
+        .max()
+        .unwrap_or(0)
+}
+
 /// The tick side of the recorder.
 pub struct Recorder {
-    queue: Arc<ArrayQueue<Record>>,
-    pool: Arc<ArrayQueue<Vec<u8>>>,
-    dropped: Arc<AtomicU64>,
+    records: RecordQueue,
     done: Arc<AtomicBool>,
     thread: Option<JoinHandle<Result<RecordingSummary, String>>>,
     /// Wait for room instead of dropping (an offline run, where no deadline is at stake).
@@ -179,41 +281,17 @@ impl Recorder {
         attach_assets(&mut writer, scene).map_err(|e| e.to_string())?;
         writer.flush().map_err(|e| e.to_string())?;
 
-        let queue = Arc::new(ArrayQueue::new(settings.queue_capacity));
-        let pool = Arc::new(ArrayQueue::new(settings.mesh_buffers.max(1)));
-        let (spare_vertices, spare_triangles) = world.spare_mesh_capacity();
-        let mesh_bytes = world
-            .bodies
-            .iter()
-            .map(|b| {
-                let (vertices, triangles) = b.mesh_capacity();
-                crate::display::max_message_bytes(vertices, triangles)
-            })
-            .chain(std::iter::once(crate::display::max_message_bytes(
-                spare_vertices,
-                spare_triangles,
-            )))
-            .max()
-            .unwrap_or(0);
-        for _ in 0..settings.mesh_buffers.max(1) {
-            let _ = pool.push(Vec::with_capacity(mesh_bytes));
-        }
-        let dropped = Arc::new(AtomicU64::new(0));
+        let records = RecordQueue::new(
+            settings.queue_capacity,
+            settings.mesh_buffers,
+            largest_mesh_message(world),
+        );
         let done = Arc::new(AtomicBool::new(false));
         let thread_state = WriterThread {
-            queue: queue.clone(),
-            pool: pool.clone(),
+            records: records.share(),
             done: done.clone(),
-            dropped: dropped.clone(),
-            writer,
-            channels,
-            dt_ns: (world.params.dt * 1e9).round() as u64,
-            tool_names: world.tools.iter().map(|t| t.name.clone()).collect(),
-            body_names: world.bodies.iter().map(|b| b.name.clone()).collect(),
-            visual: super::visual::VisualState::new(
-                world.bodies.len(),
-                world.tools.iter().map(|t| t.shape.clone()).collect(),
-            ),
+            out: McapOut { writer, channels },
+            encoder: RecordEncoder::new(world),
             flush_every_ticks: settings.flush_every_ticks.max(1),
         };
         let thread = std::thread::Builder::new()
@@ -221,9 +299,7 @@ impl Recorder {
             .spawn(move || thread_state.run())
             .map_err(|e| format!("cannot start the recorder thread: {e}"))?;
         Ok(Self {
-            queue,
-            pool,
-            dropped,
+            records,
             done,
             thread: Some(thread),
             wait_when_full: false,
@@ -233,54 +309,18 @@ impl Recorder {
     /// Hands a record to the writer; never blocks (unless [`Recorder::waiting_when_full`]). Returns
     /// false (and counts it) when the queue was full.
     pub fn push(&self, record: Record) -> bool {
-        let mut record = record;
-        loop {
-            match self.queue.push(record) {
-                Err(rejected) if self.can_wait() => {
-                    record = rejected;
-                    std::thread::yield_now();
-                }
-                other => return self.pushed(other),
-            }
-        }
-    }
-
-    fn pushed(&self, outcome: Result<(), Record>) -> bool {
-        match outcome {
-            Ok(()) => true,
-            Err(rejected) => {
-                if let Record::Mesh { data, .. } = rejected {
-                    let _ = self.pool.push(data);
-                }
-                self.dropped.fetch_add(1, Ordering::Relaxed);
-                false
-            }
-        }
+        self.records.push(record, &|| self.can_wait())
     }
 
     /// Copies a mesh message into a pooled buffer and hands it over; counts a drop when no buffer
     /// is free. Never allocates: buffers were sized for the largest message at start.
     pub fn push_mesh(&self, header: &MeshHeaderV1, bytes: &[u8]) -> bool {
-        let mut buffer = self.pool.pop();
-        while buffer.is_none() && self.can_wait() {
-            std::thread::yield_now();
-            buffer = self.pool.pop();
-        }
-        let Some(mut data) = buffer else {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-            return false;
-        };
-        data.clear();
-        data.extend_from_slice(bytes);
-        self.push(Record::Mesh {
-            header: *header,
-            data,
-        })
+        self.records.push_mesh(header, bytes, &|| self.can_wait())
     }
 
     /// Records dropped so far.
     pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.records.dropped()
     }
 
     /// Drains the queue, writes the summary and closes the file.
@@ -322,8 +362,10 @@ struct Channels {
 const TOPIC_SCENE: &str = "/palpa/scene";
 const TOPIC_KEYFRAME: &str = "/palpa/mesh/keyframe";
 const TOPIC_DELTA: &str = "/palpa/mesh/delta";
-const TOPIC_STATS: &str = "/palpa/stats";
-const TOPIC_EVENTS: &str = "/palpa/events";
+/// Topic of the loop statistics.
+pub const TOPIC_STATS: &str = "/palpa/stats";
+/// Topic of the events.
+pub const TOPIC_EVENTS: &str = "/palpa/events";
 
 /// Topic of a tool's inputs.
 pub fn input_topic(tool: &str) -> String {
@@ -552,83 +594,60 @@ pub fn stats_message(s: &StatsV1, dropped: u64) -> proto::Stats {
     }
 }
 
-struct WriterThread {
-    queue: Arc<ArrayQueue<Record>>,
-    pool: Arc<ArrayQueue<Vec<u8>>>,
-    done: Arc<AtomicBool>,
-    dropped: Arc<AtomicU64>,
+/// Where the messages a session's records make go: an MCAP file, or the live view's channels.
+pub trait MessageOut {
+    /// Whether messages of `topic` are wanted (those of a topic that is not are neither encoded nor
+    /// written).
+    fn wants(&self, topic: &str) -> bool;
+    /// Writes one encoded message of `topic`, at `log_time` (ns of simulation time).
+    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), String>;
+}
+
+/// The MCAP file of a recording.
+struct McapOut {
     writer: mcap::Writer<BufWriter<File>>,
     channels: Channels,
+}
+
+impl MessageOut for McapOut {
+    fn wants(&self, _topic: &str) -> bool {
+        true
+    }
+
+    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), String> {
+        self.channels
+            .write(&mut self.writer, topic, log_time, data)
+            .map_err(|e| format!("recording: {e}"))
+    }
+}
+
+/// Turns the records the tick hands over into the session's messages: the protobuf messages of
+/// `proto/palpa.proto` and, at display rate, the `foxglove.SceneUpdate` of the scene. Shared by the
+/// recorder and the live view, so a live viewer sees what a recording holds.
+pub struct RecordEncoder {
     dt_ns: u64,
     tool_names: Vec<String>,
     body_names: Vec<String>,
     visual: super::visual::VisualState,
-    flush_every_ticks: u64,
 }
 
-impl WriterThread {
-    fn run(mut self) -> Result<RecordingSummary, String> {
-        let mut last_flush_tick = 0u64;
-        let mut reported_drops = 0u64;
-        loop {
-            let finishing = self.done.load(Ordering::Acquire);
-            let mut wrote = false;
-            while let Some(record) = self.queue.pop() {
-                wrote = true;
-                let tick = self.write(record).map_err(|e| format!("recording: {e}"))?;
-                if tick >= last_flush_tick + self.flush_every_ticks {
-                    // Close the chunk: what is on disk stays readable if the process dies now.
-                    self.writer.flush().map_err(|e| format!("recording: {e}"))?;
-                    last_flush_tick = tick;
-                }
-            }
-            let dropped = self.dropped.load(Ordering::Relaxed);
-            if dropped > reported_drops {
-                let event = proto::Event {
-                    tick: last_flush_tick,
-                    kind: proto::event::Kind::RecordDropped as i32,
-                    tool: String::new(),
-                    detail: format!(
-                        "{} records dropped (queue or mesh pool full)",
-                        dropped - reported_drops
-                    ),
-                    ..proto::Event::default()
-                };
-                self.channels
-                    .write(
-                        &mut self.writer,
-                        TOPIC_EVENTS,
-                        last_flush_tick * self.dt_ns,
-                        &event.encode_to_vec(),
-                    )
-                    .map_err(|e| e.to_string())?;
-                reported_drops = dropped;
-            }
-            if finishing && self.queue.is_empty() {
-                break;
-            }
-            if !wrote {
-                std::thread::sleep(std::time::Duration::from_millis(1));
-            }
+impl RecordEncoder {
+    /// For a session of `world` (its tools and bodies at start).
+    pub fn new(world: &World) -> Self {
+        Self {
+            dt_ns: (world.params.dt * 1e9).round() as u64,
+            tool_names: world.tools.iter().map(|t| t.name.clone()).collect(),
+            body_names: world.bodies.iter().map(|b| b.name.clone()).collect(),
+            visual: super::visual::VisualState::new(
+                world.bodies.len(),
+                world.tools.iter().map(|t| t.shape.clone()).collect(),
+            ),
         }
-        self.writer
-            .finish()
-            .map_err(|e| format!("closing the recording: {e}"))?;
-        Ok(RecordingSummary {
-            messages: self.channels.counts,
-            dropped: self.dropped.load(Ordering::Relaxed),
-        })
     }
 
-    /// Writes an event on the events channel at its tick; returns the tick.
-    fn write_event(&mut self, message: &proto::Event, dt: u64) -> mcap::McapResult<u64> {
-        self.channels.write(
-            &mut self.writer,
-            TOPIC_EVENTS,
-            message.tick * dt,
-            &message.encode_to_vec(),
-        )?;
-        Ok(message.tick)
+    /// Nanoseconds of simulation time per tick.
+    pub fn dt_ns(&self) -> u64 {
+        self.dt_ns
     }
 
     fn tool_name(&self, tool: u16) -> String {
@@ -638,8 +657,48 @@ impl WriterThread {
             .unwrap_or_default()
     }
 
-    /// Writes one record; returns its tick.
-    fn write(&mut self, record: Record) -> mcap::McapResult<u64> {
+    /// Writes the event that `count` records were dropped, at `tick`.
+    pub fn write_dropped(
+        &mut self,
+        out: &mut dyn MessageOut,
+        tick: u64,
+        count: u64,
+    ) -> Result<(), String> {
+        let event = proto::Event {
+            tick,
+            kind: proto::event::Kind::RecordDropped as i32,
+            tool: String::new(),
+            detail: format!("{count} records dropped (queue or mesh pool full)"),
+            ..proto::Event::default()
+        };
+        self.write_event(out, &event).map(|_| ())
+    }
+
+    /// Writes an event on the events channel at its tick; returns the tick.
+    fn write_event(
+        &mut self,
+        out: &mut dyn MessageOut,
+        message: &proto::Event,
+    ) -> Result<u64, String> {
+        if out.wants(TOPIC_EVENTS) {
+            out.write(
+                TOPIC_EVENTS,
+                message.tick * self.dt_ns,
+                &message.encode_to_vec(),
+            )?;
+        }
+        Ok(message.tick)
+    }
+
+    /// Encodes one record into `out` (a mesh record's buffer goes back to `pool`); `dropped` is the
+    /// drop count the statistics carry. Returns the record's tick.
+    pub fn encode(
+        &mut self,
+        record: Record,
+        pool: &ArrayQueue<Vec<u8>>,
+        dropped: u64,
+        out: &mut dyn MessageOut,
+    ) -> Result<u64, String> {
         let dt = self.dt_ns;
         match record {
             Record::Input {
@@ -659,72 +718,64 @@ impl WriterThread {
                         ),
                     },
                 );
-                let message = proto::ToolInput {
-                    tick,
-                    tool: name.clone(),
-                    position: vec3(pose.position),
-                    orientation: Some(proto::Quaternion { w, x, y, z }),
-                    jaw: pose.jaw,
-                    seq: pose.seq,
-                    device_time_ns: pose.device_time_ns,
-                    receive_wall_time_ns,
-                    buttons: pose.buttons,
-                };
-                self.channels.write(
-                    &mut self.writer,
-                    &input_topic(&name),
-                    tick * dt,
-                    &message.encode_to_vec(),
-                )?;
+                let topic = input_topic(&name);
+                if out.wants(&topic) {
+                    let message = proto::ToolInput {
+                        tick,
+                        tool: name,
+                        position: vec3(pose.position),
+                        orientation: Some(proto::Quaternion { w, x, y, z }),
+                        jaw: pose.jaw,
+                        seq: pose.seq,
+                        device_time_ns: pose.device_time_ns,
+                        receive_wall_time_ns,
+                        buttons: pose.buttons,
+                    };
+                    out.write(&topic, tick * dt, &message.encode_to_vec())?;
+                }
                 Ok(tick)
             }
             Record::Feedback { tool, feedback } => {
                 let name = self.tool_name(tool);
                 self.visual
                     .set_tool_force(tool as usize, feedback.force.into());
-                let message = feedback_message(&name, &feedback);
-                self.channels.write(
-                    &mut self.writer,
-                    &feedback_topic(&name),
-                    feedback.tick * dt,
-                    &message.encode_to_vec(),
-                )?;
+                let topic = feedback_topic(&name);
+                if out.wants(&topic) {
+                    let message = feedback_message(&name, &feedback);
+                    out.write(&topic, feedback.tick * dt, &message.encode_to_vec())?;
+                }
                 Ok(feedback.tick)
             }
             Record::Mesh { header, data } => {
                 let payload = &data[..header.payload_bytes as usize];
-                let (keyframe, bytes) = mesh_message(&header, payload);
                 let display_tick_done = self.visual.apply_mesh(&header, payload);
-                let _ = self.pool.push(data);
-                let topic = if keyframe {
+                let topic = if header.kind == MESH_KEYFRAME {
                     TOPIC_KEYFRAME
                 } else {
                     TOPIC_DELTA
                 };
-                self.channels
-                    .write(&mut self.writer, topic, header.tick * dt, &bytes)?;
-                if display_tick_done {
+                let written = if out.wants(topic) {
+                    let (_, bytes) = mesh_message(&header, payload);
+                    out.write(topic, header.tick * dt, &bytes)
+                } else {
+                    Ok(())
+                };
+                let _ = pool.push(data);
+                written?;
+                if display_tick_done && out.wants(super::visual::TOPIC_SCENE_UPDATE) {
                     let time = header.tick * dt;
                     let update = self
                         .visual
                         .scene_update(time, &self.body_names, &self.tool_names);
-                    self.channels.write(
-                        &mut self.writer,
-                        super::visual::TOPIC_SCENE_UPDATE,
-                        time,
-                        &update,
-                    )?;
+                    out.write(super::visual::TOPIC_SCENE_UPDATE, time, &update)?;
                 }
                 Ok(header.tick)
             }
             Record::Stats(stats) => {
-                let message = stats_message(&stats, self.dropped.load(Ordering::Relaxed));
-                self.channels.write(
-                    &mut self.writer,
-                    TOPIC_STATS,
-                    stats.tick * dt,
-                    &message.encode_to_vec(),
-                )?;
+                if out.wants(TOPIC_STATS) {
+                    let message = stats_message(&stats, dropped);
+                    out.write(TOPIC_STATS, stats.tick * dt, &message.encode_to_vec())?;
+                }
                 Ok(stats.tick)
             }
             Record::Guard { tick, body, cause } => {
@@ -739,9 +790,9 @@ impl WriterThread {
                     tool: String::new(),
                     detail: format!("body {name}: {cause:?}"),
                     body: body as u32,
-                    body_name: name.clone(),
+                    body_name: name,
                 };
-                self.write_event(&message, dt)
+                self.write_event(out, &message)
             }
             Record::BodyAdded {
                 tick,
@@ -762,7 +813,7 @@ impl WriterThread {
                     body_name: name,
                     ..proto::Event::default()
                 };
-                self.write_event(&message, dt)
+                self.write_event(out, &message)
             }
             Record::Event { tick, kind, tool } => {
                 let message = proto::Event {
@@ -775,9 +826,68 @@ impl WriterThread {
                     },
                     ..proto::Event::default()
                 };
-                self.write_event(&message, dt)
+                self.write_event(out, &message)
             }
         }
+    }
+}
+
+struct WriterThread {
+    records: RecordQueue,
+    done: Arc<AtomicBool>,
+    out: McapOut,
+    encoder: RecordEncoder,
+    flush_every_ticks: u64,
+}
+
+impl WriterThread {
+    fn run(mut self) -> Result<RecordingSummary, String> {
+        let mut last_flush_tick = 0u64;
+        let mut reported_drops = 0u64;
+        loop {
+            let finishing = self.done.load(Ordering::Acquire);
+            let mut wrote = false;
+            while let Some(record) = self.records.queue.pop() {
+                wrote = true;
+                let tick = self.encoder.encode(
+                    record,
+                    &self.records.pool,
+                    self.records.dropped(),
+                    &mut self.out,
+                )?;
+                if tick >= last_flush_tick + self.flush_every_ticks {
+                    // Close the chunk: what is on disk stays readable if the process dies now.
+                    self.out
+                        .writer
+                        .flush()
+                        .map_err(|e| format!("recording: {e}"))?;
+                    last_flush_tick = tick;
+                }
+            }
+            let dropped = self.records.dropped();
+            if dropped > reported_drops {
+                self.encoder.write_dropped(
+                    &mut self.out,
+                    last_flush_tick,
+                    dropped - reported_drops,
+                )?;
+                reported_drops = dropped;
+            }
+            if finishing && self.records.queue.is_empty() {
+                break;
+            }
+            if !wrote {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+        self.out
+            .writer
+            .finish()
+            .map_err(|e| format!("closing the recording: {e}"))?;
+        Ok(RecordingSummary {
+            messages: self.out.channels.counts,
+            dropped: self.records.dropped(),
+        })
     }
 }
 

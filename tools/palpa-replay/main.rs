@@ -54,6 +54,10 @@ struct Args {
     /// Service prefix for --play.
     #[arg(long, default_value = "palpa")]
     prefix: String,
+    /// With --play: also show the session to Foxglove on [HOST:]PORT (a WebSocket server, as
+    /// `palpa serve --live`: its scene, feedback, statistics and events as recorded).
+    #[arg(long, value_name = "[HOST:]PORT")]
+    live: Option<String>,
     /// Print a summary of the session.
     #[arg(long)]
     summary: bool,
@@ -200,6 +204,7 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
     use palpa::ipc::payload::ToolFeedbackV1;
     use palpa::ipc::services::{create_node, feedback_service, mesh_service};
     use palpa::record::proto;
+    use palpa::record::recorder::MessageOut;
     use prost::Message;
 
     if !(args.speed.is_finite() && args.speed > 0.0) {
@@ -232,6 +237,24 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
                 .create()?)
         })
         .map_err(|e| anyhow!("{e}"))?;
+    let live = match &args.live {
+        Some(text) => {
+            use palpa::record::live::{LiveServer, LiveSettings, parse_address};
+            let address = parse_address(text).map_err(|e| anyhow!(e))?;
+            let server = LiveServer::start(address, LiveSettings::default().viewer_backlog)
+                .map_err(|e| anyhow!(e))?;
+            let channels = server
+                .channels(recording.scene.tools.iter().map(String::as_str))
+                .map_err(|e| anyhow!(e))?;
+            println!(
+                "play: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
+                server.url()
+            );
+            Some((server, channels))
+        }
+        None => None,
+    };
+    let mut live = live;
     let started = Instant::now();
     let mut published = 0u64;
     let mut previous_log_time = 0u64;
@@ -251,6 +274,13 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
             .map_err(|e| anyhow!("log time {} ns at speed {}: {e}", m.log_time, args.speed))?;
         if let Some(wait) = at.checked_sub(started.elapsed()) {
             std::thread::sleep(wait);
+        }
+        if let Some((_, channels)) = live.as_mut()
+            && channels.wants(&m.topic)
+        {
+            channels
+                .write(&m.topic, m.log_time, &m.data)
+                .map_err(|e| anyhow!(e))?;
         }
         if let Some(publisher) = feedback.get(&m.topic) {
             let f = proto::Feedback::decode(&m.data[..])
@@ -285,5 +315,12 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
         "play: {published} messages published on prefix {:?}",
         args.prefix
     );
+    if let Some((server, channels)) = live {
+        let total: u64 = channels.counts().values().sum();
+        println!(
+            "play: live view published {total} messages to {} viewers",
+            server.viewers()
+        );
+    }
     Ok(())
 }
