@@ -211,3 +211,294 @@ pub struct MeshHeaderV1 {
     /// Bytes of the slice that carry data.
     pub payload_bytes: u32,
 }
+
+/// The little-endian wire form of a v1 payload: the bytes of its C layout (no padding in any of
+/// them), written and read field by field so that it is the same on every machine. What
+/// `palpa-zenoh` carries over Zenoh.
+pub trait WireV1: Sized {
+    /// Size of the C layout (bytes).
+    const BYTES: usize;
+    /// Appends the wire form to `out`.
+    fn write_le(&self, out: &mut Vec<u8>);
+    /// The payload in `bytes`, which must be exactly [`WireV1::BYTES`] long (`None` otherwise).
+    fn read_le(bytes: &[u8]) -> Option<Self>;
+    /// The wire form.
+    fn to_le_vec(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(Self::BYTES);
+        self.write_le(&mut out);
+        out
+    }
+}
+
+/// Reads little-endian fields in order.
+struct LeReader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl LeReader<'_> {
+    fn take<const N: usize>(&mut self) -> [u8; N] {
+        let mut field = [0u8; N];
+        field.copy_from_slice(&self.bytes[self.at..self.at + N]);
+        self.at += N;
+        field
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take())
+    }
+    fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.take())
+    }
+    fn f64(&mut self) -> f64 {
+        f64::from_le_bytes(self.take())
+    }
+    fn f64s<const N: usize>(&mut self) -> [f64; N] {
+        std::array::from_fn(|_| self.f64())
+    }
+}
+
+fn put_f64s(out: &mut Vec<u8>, values: &[f64]) {
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+impl WireV1 for ToolPoseV1 {
+    const BYTES: usize = 88;
+    fn write_le(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        out.extend_from_slice(&self.device_time_ns.to_le_bytes());
+        put_f64s(out, &self.position);
+        put_f64s(out, &self.orientation);
+        put_f64s(out, &[self.jaw]);
+        out.extend_from_slice(&self.buttons.to_le_bytes());
+        out.extend_from_slice(&self.reserved.to_le_bytes());
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::BYTES {
+            return None;
+        }
+        let mut r = LeReader { bytes, at: 0 };
+        Some(Self {
+            seq: r.u64(),
+            device_time_ns: r.u64(),
+            position: r.f64s(),
+            orientation: r.f64s(),
+            jaw: r.f64(),
+            buttons: r.u32(),
+            reserved: r.u32(),
+        })
+    }
+}
+
+impl WireV1 for ToolFeedbackV1 {
+    const BYTES: usize = 80;
+    fn write_le(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.seq.to_le_bytes());
+        out.extend_from_slice(&self.device_time_ns.to_le_bytes());
+        out.extend_from_slice(&self.tick.to_le_bytes());
+        put_f64s(out, &self.force);
+        put_f64s(out, &self.torque);
+        out.extend_from_slice(&self.contacts.to_le_bytes());
+        out.extend_from_slice(&self.flags.to_le_bytes());
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::BYTES {
+            return None;
+        }
+        let mut r = LeReader { bytes, at: 0 };
+        Some(Self {
+            seq: r.u64(),
+            device_time_ns: r.u64(),
+            tick: r.u64(),
+            force: r.f64s(),
+            torque: r.f64s(),
+            contacts: r.u32(),
+            flags: r.u32(),
+        })
+    }
+}
+
+impl WireV1 for StatsV1 {
+    const BYTES: usize = 128;
+    fn write_le(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.tick.to_le_bytes());
+        out.extend_from_slice(&self.window_ticks.to_le_bytes());
+        put_f64s(
+            out,
+            &[
+                self.compute_min_us,
+                self.compute_mean_us,
+                self.compute_max_us,
+                self.compute_p99_us,
+                self.lateness_mean_us,
+                self.lateness_max_us,
+            ],
+        );
+        for v in [
+            self.synchronicity_misses,
+            self.rejected_inputs,
+            self.disconnects,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for v in [
+            self.active_systems,
+            self.tools_connected,
+            self.paused,
+            self.dropped_records,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        put_f64s(out, &[self.stability_margin]);
+        out.extend_from_slice(&self.guard_events.to_le_bytes());
+        out.extend_from_slice(&self.ipc_errors.to_le_bytes());
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::BYTES {
+            return None;
+        }
+        let mut r = LeReader { bytes, at: 0 };
+        Some(Self {
+            tick: r.u64(),
+            window_ticks: r.u64(),
+            compute_min_us: r.f64(),
+            compute_mean_us: r.f64(),
+            compute_max_us: r.f64(),
+            compute_p99_us: r.f64(),
+            lateness_mean_us: r.f64(),
+            lateness_max_us: r.f64(),
+            synchronicity_misses: r.u64(),
+            rejected_inputs: r.u64(),
+            disconnects: r.u64(),
+            active_systems: r.u32(),
+            tools_connected: r.u32(),
+            paused: r.u32(),
+            dropped_records: r.u32(),
+            stability_margin: r.f64(),
+            guard_events: r.u64(),
+            ipc_errors: r.u64(),
+        })
+    }
+}
+
+impl WireV1 for MeshHeaderV1 {
+    const BYTES: usize = 40;
+    fn write_le(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.kind.to_le_bytes());
+        out.extend_from_slice(&self.body.to_le_bytes());
+        out.extend_from_slice(&self.tick.to_le_bytes());
+        out.extend_from_slice(&self.base_tick.to_le_bytes());
+        for v in [
+            self.vertex_count,
+            self.triangle_count,
+            self.changed_count,
+            self.payload_bytes,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != Self::BYTES {
+            return None;
+        }
+        let mut r = LeReader { bytes, at: 0 };
+        Some(Self {
+            kind: r.u32(),
+            body: r.u32(),
+            tick: r.u64(),
+            base_tick: r.u64(),
+            vertex_count: r.u32(),
+            triangle_count: r.u32(),
+            changed_count: r.u32(),
+            payload_bytes: r.u32(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod wire_tests {
+    use super::*;
+
+    /// The in-memory bytes of a `#[repr(C)]` payload without padding.
+    fn memory<T: Copy>(value: &T) -> Vec<u8> {
+        // SAFETY: T is a plain-data payload of this module (no padding, no pointers): every byte is
+        // initialised and may be read as u8.
+        unsafe {
+            std::slice::from_raw_parts((value as *const T).cast::<u8>(), size_of::<T>()).to_vec()
+        }
+    }
+
+    fn check<T: WireV1 + Copy + PartialEq + std::fmt::Debug>(value: T) {
+        let wire = value.to_le_vec();
+        assert_eq!(wire.len(), T::BYTES);
+        assert_eq!(size_of::<T>(), T::BYTES);
+        if cfg!(target_endian = "little") {
+            assert_eq!(
+                wire,
+                memory(&value),
+                "the wire form is the C layout's bytes"
+            );
+        }
+        assert_eq!(T::read_le(&wire), Some(value));
+        assert_eq!(T::read_le(&wire[1..]), None);
+        let mut longer = wire.clone();
+        longer.push(0);
+        assert_eq!(T::read_le(&longer), None);
+    }
+
+    #[test]
+    fn every_payload_round_trips_through_its_little_endian_wire_form() {
+        check(ToolPoseV1 {
+            seq: 7,
+            device_time_ns: 1 << 40,
+            position: [0.1, -0.2, 0.3],
+            orientation: [0.5, 0.5, -0.5, 0.5],
+            jaw: 0.25,
+            buttons: 5,
+            reserved: 0,
+        });
+        check(ToolFeedbackV1 {
+            seq: 3,
+            device_time_ns: 9,
+            tick: 11,
+            force: [1.0, -2.5, 3.25],
+            torque: [0.0, 1e-3, -4.0],
+            contacts: 12,
+            flags: FEEDBACK_CLAMPED | FEEDBACK_STALE,
+        });
+        let mut stats = StatsV1 {
+            tick: 1000,
+            window_ticks: 1000,
+            compute_min_us: 1.5,
+            compute_mean_us: 2.5,
+            compute_max_us: 30.0,
+            compute_p99_us: 7.0,
+            lateness_mean_us: 0.5,
+            lateness_max_us: 4.0,
+            synchronicity_misses: 2,
+            rejected_inputs: 3,
+            disconnects: 4,
+            active_systems: 0x7f,
+            tools_connected: 1,
+            paused: 0,
+            dropped_records: 6,
+            stability_margin: -0.25,
+            guard_events: 8,
+            ipc_errors: 9,
+        };
+        check(stats);
+        stats.paused = 1;
+        check(stats);
+        check(MeshHeaderV1 {
+            kind: MESH_DELTA,
+            body: 2,
+            tick: 500,
+            base_tick: 484,
+            vertex_count: 642,
+            triangle_count: 0,
+            changed_count: 17,
+            payload_bytes: 272,
+        });
+    }
+}
