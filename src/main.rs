@@ -561,8 +561,13 @@ fn serve(args: ServeArgs) -> Result<()> {
             #[cfg(feature = "record")]
             if let Some(live) = live {
                 let total: u64 = live.messages.values().sum();
+                let scenes = live
+                    .messages
+                    .get(palpa::record::visual::TOPIC_SCENE_UPDATE)
+                    .copied()
+                    .unwrap_or(0);
                 println!(
-                    "palpa serve: live view published {total} messages to {} viewers ({} records dropped)",
+                    "palpa serve: live view published {total} messages ({scenes} scene updates) to {} viewers ({} records dropped)",
                     live.viewers, live.dropped
                 );
             }
