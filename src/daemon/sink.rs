@@ -204,10 +204,13 @@ impl RecordSink {
     }
 }
 
-/// What a live view did (feature `live`; an empty stand-in without it).
-#[cfg(feature = "live")]
-pub use crate::record::live::LiveSummary;
-/// What a live view did (feature `live`; an empty stand-in without it).
-#[cfg(not(feature = "live"))]
+/// What a live view did (`palpa serve --live`, feature `live`).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct LiveSummary;
+pub struct LiveSummary {
+    /// Messages published per topic (sent to every subscribed viewer).
+    pub messages: std::collections::BTreeMap<String, u64>,
+    /// Records the tick could not hand over (queue or mesh pool full).
+    pub dropped: u64,
+    /// Viewers that connected.
+    pub viewers: u64,
+}

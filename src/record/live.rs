@@ -33,6 +33,7 @@ use super::recorder::{
     largest_mesh_message,
 };
 use super::visual::{TOPIC_SCENE_UPDATE, scene_update_schema};
+pub use crate::daemon::sink::LiveSummary;
 use crate::ipc::payload::MeshHeaderV1;
 use crate::world::World;
 
@@ -65,17 +66,6 @@ impl Default for LiveSettings {
             viewer_backlog: 256,
         }
     }
-}
-
-/// What the live view did.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LiveSummary {
-    /// Messages published per topic (sent to every subscribed viewer).
-    pub messages: std::collections::BTreeMap<String, u64>,
-    /// Records the tick could not hand over (queue or mesh pool full).
-    pub dropped: u64,
-    /// Viewers that connected.
-    pub viewers: u64,
 }
 
 /// The tick's side of the live view.

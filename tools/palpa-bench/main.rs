@@ -22,6 +22,7 @@
 #[path = "../common/plot.rs"]
 mod plot;
 mod reference;
+mod remote;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
@@ -62,6 +63,9 @@ enum Cmd {
     /// palpa's tick against the plain reference step of the same model (array of structs, scalar
     /// f64), same organ, same run.
     Reference(ReferenceArgs),
+    /// Round trip through `palpa-zenoh` against the local iceoryx2 path (p50, p99), and the daemon's
+    /// tick with and without the live view and a viewer.
+    Remote(GraspArgs),
     /// (internal) The daemon on the embedded default scene, real-time mode, when no `palpa`
     /// executable sits next to this one: the same serve loop as `palpa serve --rt --timings`.
     #[command(hide = true)]
@@ -160,6 +164,7 @@ fn main() -> Result<()> {
         Cmd::Grasp(args) => grasp(args),
         Cmd::Bodies(args) => bodies(args),
         Cmd::Reference(args) => reference_comparison(args),
+        Cmd::Remote(args) => remote::remote(&args.out, args.quick),
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
@@ -234,6 +239,30 @@ fn spread(mut values: Vec<f64>) -> serde_json::Value {
     })
 }
 
+/// The compute and lateness histograms of `palpa serve --timings FILE` (non-empty 1 µs bins).
+#[allow(clippy::type_complexity)]
+fn read_timings(path: &Path) -> Result<(Vec<(usize, u64)>, Vec<(usize, u64)>)> {
+    let csv =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut compute: Vec<(usize, u64)> = Vec::new();
+    let mut lateness: Vec<(usize, u64)> = Vec::new();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 3 {
+            bail!("bad timings line {line:?}");
+        }
+        let bin: usize = f[0].parse()?;
+        let (c, l): (u64, u64) = (f[1].parse()?, f[2].parse()?);
+        if c > 0 {
+            compute.push((bin, c));
+        }
+        if l > 0 {
+            lateness.push((bin, l));
+        }
+    }
+    Ok((compute, lateness))
+}
+
 /// Percentile from a 1 µs histogram (upper bin edge).
 fn histogram_percentile(bins: &[(usize, u64)], q: f64) -> f64 {
     let total: u64 = bins.iter().map(|b| b.1).sum();
@@ -301,24 +330,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
         .map(str::to_string)
         .collect();
     progress.step("daemon + device");
-    let csv = std::fs::read_to_string(&timings)
-        .with_context(|| format!("cannot read {}", timings.display()))?;
-    let mut compute: Vec<(usize, u64)> = Vec::new();
-    let mut lateness: Vec<(usize, u64)> = Vec::new();
-    for line in csv.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 3 {
-            bail!("bad timings line {line:?}");
-        }
-        let bin: usize = f[0].parse()?;
-        let (c, l): (u64, u64) = (f[1].parse()?, f[2].parse()?);
-        if c > 0 {
-            compute.push((bin, c));
-        }
-        if l > 0 {
-            lateness.push((bin, l));
-        }
-    }
+    let (compute, lateness) = read_timings(&timings)?;
     let ticks: u64 = compute.iter().map(|b| b.1).sum();
     let misses: u64 = compute.iter().filter(|b| b.0 >= 1000).map(|b| b.1).sum();
     let compute_mean = compute
