@@ -110,6 +110,7 @@ impl LiveServer {
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("palpa-live-io")
+            .on_thread_start(keep_off_the_realtime_core)
             .enable_all()
             .build()
             .map_err(|e| format!("live view: cannot start its runtime: {e}"))?;
@@ -207,6 +208,7 @@ impl LiveView {
         let thread = std::thread::Builder::new()
             .name("palpa-live".into())
             .spawn(move || {
+                keep_off_the_realtime_core();
                 let mut summary = publisher.run();
                 summary.viewers = server.viewers();
                 drop(server);
@@ -376,6 +378,24 @@ impl Publisher {
             dropped: self.records.dropped(),
             viewers: 0,
         }
+    }
+}
+
+/// Keeps the calling thread off the core `palpa serve --rt` pins its loop to (the last one), where
+/// there is another: the live view's work then never takes the loop's core.
+fn keep_off_the_realtime_core() {
+    // SAFETY: plain system calls on the calling thread with valid arguments.
+    unsafe {
+        let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        if cores < 2 {
+            return;
+        }
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        for core in 0..cores - 1 {
+            libc::CPU_SET(core, &mut set);
+        }
+        // Best effort: a refusal leaves the thread where the scheduler puts it.
+        let _ = libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
     }
 }
 

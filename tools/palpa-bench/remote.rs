@@ -114,13 +114,17 @@ pub fn zenoh_ping(endpoint: &str, prefix: &str, count: u64) -> Result<Vec<f64>> 
         std::thread::sleep(slot.saturating_duration_since(Instant::now()));
         let sent = Instant::now();
         send(seq)?;
+        // Blocking on the subscriber's queue, as a remote client would (spinning would take one of
+        // this machine's two cores from the bridge and the daemon).
         let give_up = sent + Duration::from_millis(100);
-        while Instant::now() < give_up {
-            if answered(seq)? {
+        while let Some(sample) = feedback
+            .recv_deadline(give_up)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+        {
+            if ToolFeedbackV1::read_le(&sample.payload().to_bytes()).is_some_and(|f| f.seq == seq) {
                 round_trips.push(sent.elapsed().as_secs_f64() * 1e6);
                 break;
             }
-            std::hint::spin_loop();
         }
     }
     drop(poses);
