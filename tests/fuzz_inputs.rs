@@ -1,6 +1,7 @@
 //! Fuzz targets as property tests over arbitrary bytes (cargo-fuzz needs a nightly toolchain): the
-//! recording reader, the scene parser, the OBJ loader, the pose checks of the IPC input and the
-//! mesh-stream decoder each take any input and return a value or a clear error — never a panic, an
+//! recording reader, the scene parser, the OBJ loader, the pose checks of the IPC input, the
+//! mesh-stream decoder, the little-endian payloads `palpa-zenoh` reads and the live view's handling
+//! of upgrade requests each take any input and return a value or a clear error — never a panic, an
 //! abort or an allocation the input cannot account for.
 //!
 //! Every target runs `PALPA_FUZZ_CASES` cases (default 4096: about a second each in release on two
@@ -552,6 +553,87 @@ fn fuzz_mesh_stream_decoder() {
                 prop_assert_eq!(&display.positions, &before.positions);
                 prop_assert_eq!(&display.triangles, &before.triangles);
             }
+        }
+    });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Zenoh payloads (palpa-zenoh) and the live view's upgrade requests
+
+#[test]
+fn fuzz_wire_payloads() {
+    use palpa::ipc::payload::{StatsV1, ToolFeedbackV1, WireV1};
+    proptest!(config(10), |(bytes in prop::collection::vec(any::<u8>(), 0..160))| {
+        // Any bytes: a payload only when the size is exactly the structure's, and then the same
+        // bytes when written back (every bit pattern of every field is kept, NaNs included).
+        let pose = ToolPoseV1::read_le(&bytes);
+        prop_assert_eq!(pose.is_some(), bytes.len() == ToolPoseV1::BYTES);
+        if let Some(pose) = pose {
+            prop_assert_eq!(pose.to_le_vec(), bytes.clone());
+        }
+        let feedback = ToolFeedbackV1::read_le(&bytes);
+        prop_assert_eq!(feedback.is_some(), bytes.len() == ToolFeedbackV1::BYTES);
+        if let Some(feedback) = feedback {
+            prop_assert_eq!(feedback.to_le_vec(), bytes.clone());
+        }
+        let stats = StatsV1::read_le(&bytes);
+        prop_assert_eq!(stats.is_some(), bytes.len() == StatsV1::BYTES);
+        if let Some(stats) = stats {
+            prop_assert_eq!(stats.to_le_vec(), bytes.clone());
+        }
+        let header = MeshHeaderV1::read_le(&bytes);
+        prop_assert_eq!(header.is_some(), bytes.len() == MeshHeaderV1::BYTES);
+        if let Some(header) = header {
+            prop_assert_eq!(header.to_le_vec(), bytes.clone());
+        }
+    });
+    // Exactly-sized payloads of any bits, as a remote client may send them.
+    proptest!(config(11), |(bytes in prop::collection::vec(any::<u8>(), 88))| {
+        let pose = ToolPoseV1::read_le(&bytes).expect("88 bytes are a pose");
+        prop_assert_eq!(pose.to_le_vec(), bytes);
+    });
+}
+
+#[cfg(feature = "live")]
+#[test]
+fn fuzz_live_view_upgrade_requests() {
+    use palpa::record::live::{rename_answer, rename_offer};
+    let request = |protocols: &str| {
+        format!(
+            "GET / HTTP/1.1\r\nHost: h\r\nUpgrade: websocket\r\nSec-WebSocket-Protocol: {protocols}\r\n\r\n"
+        )
+        .into_bytes()
+    };
+    proptest!(config(12), |(
+        bytes in prop::collection::vec(any::<u8>(), 0..600),
+        offered in prop::sample::subsequence(
+            vec!["foxglove.websocket.v1", "foxglove.sdk.v1", "foxglove.sdk.v1.1", "chat", "x"],
+            0..=4,
+        ),
+        shuffle in any::<bool>(),
+    )| {
+        let mut offered = offered;
+        if shuffle {
+            offered.reverse();
+        }
+        let protocols = offered.join(", ");
+        // Any bytes: an answer, never a panic; a head without the legacy offer alone is unchanged.
+        let (head, legacy) = rename_offer(&bytes);
+        if !legacy {
+            prop_assert_eq!(&head, &bytes);
+        }
+        let _ = rename_answer(&bytes);
+        let original = request(&protocols);
+        let (head, legacy) = rename_offer(&original);
+        let expect_legacy = offered.contains(&"foxglove.websocket.v1")
+            && !offered.iter().any(|p| p.starts_with("foxglove.sdk."));
+        prop_assert_eq!(legacy, expect_legacy);
+        if legacy {
+            let text = String::from_utf8(head).unwrap();
+            prop_assert!(text.contains("\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n"));
+            prop_assert!(text.ends_with("\r\n\r\n"));
+        } else {
+            prop_assert_eq!(head, original);
         }
     });
 }
