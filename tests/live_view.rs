@@ -2,7 +2,8 @@
 //! the `foxglove.SceneUpdate` messages with the schema the server advertises while the daemon runs,
 //! offering the current subprotocol or its legacy name; a viewer that subscribes and then stops
 //! reading costs the daemon nothing: every tick is stepped, nothing is dropped on the way from the
-//! tick, and another viewer keeps receiving.
+//! tick, and another viewer keeps receiving. `palpa-replay --play --live` shows a recording the same
+//! way.
 #![cfg(feature = "live")]
 
 mod common;
@@ -129,5 +130,75 @@ fn a_headless_viewer_decodes_the_live_scene_and_a_stalled_one_changes_nothing() 
             "({display_ticks} scene updates) to 3 viewers (0 records dropped)"
         )),
         "{live}"
+    );
+}
+
+#[test]
+fn a_recording_played_back_is_shown_live() {
+    let Some(python) = common::python_with("websockets, google.protobuf") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("palpa_live_play_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let recording = dir.join("session.mcap");
+    let run = Command::new(env!("CARGO_BIN_EXE_palpa"))
+        .args(["run", "--duration", "3", "--record"])
+        .arg(&recording)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let mut play = Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .arg(&recording)
+        .args(["--play", "--speed", "0.5", "--live", "127.0.0.1:0"])
+        .args(["--prefix", &format!("lp{}", std::process::id())])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = play.stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines().map_while(Result::ok);
+    let url = lines
+        .by_ref()
+        .find_map(|l| {
+            l.find("ws://")
+                .map(|at| l[at..].split_whitespace().next().unwrap().to_string())
+        })
+        .expect("palpa-replay prints its live address");
+    let out = Command::new(&python)
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tools/python/live_view_client.py"
+        ))
+        .args([&url, "--seconds", "2"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
+    let rest: Vec<String> = lines.collect();
+    let (status, _) = common::wait_for_exit(&mut play, 60, "the playback ends");
+    assert!(status.success(), "{rest:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+    // The recorded SceneUpdates, decoded with the advertised schema: the organ, every triangle.
+    assert_eq!(summary["decode_errors"], 0, "{summary}");
+    assert!(
+        summary["scene_updates"].as_u64().unwrap() >= 10,
+        "{summary}"
+    );
+    assert_eq!(
+        summary["body_entities"], summary["scene_updates"],
+        "{summary}"
+    );
+    assert_eq!(summary["triangles"], 1280, "{summary}");
+    assert!(
+        rest.iter().any(|l| l.contains("to 1 viewers")),
+        "one viewer counted: {rest:?}"
     );
 }
