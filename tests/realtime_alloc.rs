@@ -1,4 +1,5 @@
-//! Real time: after warm-up, a step allocates nothing. A counting global allocator watches the heap
+//! Real time: after warm-up, a step allocates nothing, nor does what the tick hands to a recording and
+//! a live view. A counting global allocator watches the heap
 //! while the world steps scenes with every system of the core model switched on.
 
 mod common;
@@ -208,4 +209,89 @@ fn cutting_and_transection_allocate_nothing_on_the_tick() {
         }
         assert_eq!(count, 0, "{file}: {count} allocations in {ticks} steps");
     }
+}
+
+/// What the daemon's tick hands to a recording and to a live view (feedback, inputs, mesh messages,
+/// statistics, events) allocates nothing on the tick's thread: records go into bounded queues, mesh
+/// bytes into buffers from pools filled at start. The recorder's and the live view's own threads
+/// allocate as they encode, off the tick.
+#[cfg(feature = "live")]
+#[test]
+fn recording_and_the_live_view_allocate_nothing_on_the_tick() {
+    use palpa::daemon::sink::{RecordSink, event};
+    use palpa::display::MeshSchedule;
+    use palpa::ipc::payload::{StatsV1, ToolPoseV1};
+    use palpa::record::live::{LiveSettings, LiveView};
+    use palpa::record::recorder::{Recorder, RecorderSettings, SessionInfo};
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = load_scene(&common::repo_root().join("scenes/probe_press.toml")).unwrap();
+    let mut world = World::from_scene(&scene);
+    let path = std::env::temp_dir().join(format!("palpa_alloc_{}.mcap", std::process::id()));
+    let session = SessionInfo {
+        mode: "serve".into(),
+        display_rate_hz: 60.0,
+        keyframe_every_s: 2.0,
+    };
+    // This loop steps far faster than real time: the recorder waits for its writer rather than
+    // drop (as `palpa run` records), the live view drops what does not fit (as the daemon's does).
+    let recorder = Recorder::start(&path, &scene, &world, &session, RecorderSettings::default())
+        .unwrap()
+        .waiting_when_full();
+    let live = LiveView::start(
+        "127.0.0.1:0".parse().unwrap(),
+        &world,
+        LiveSettings::default(),
+    )
+    .unwrap();
+    let sink = RecordSink::to(recorder).with_live(live);
+    let mut meshes = MeshSchedule::new(&world, 60.0, 2.0);
+    let mut known = world.bodies.len();
+    let pose = ToolPoseV1 {
+        orientation: [1.0, 0.0, 0.0, 0.0],
+        ..ToolPoseV1::default()
+    };
+    let mut tick = |world: &mut World, meshes: &mut MeshSchedule, known: &mut usize| {
+        sink.input(world.tick, 0, &pose, 0);
+        world.step();
+        sink.bodies_added(world, known);
+        for tool in 0..world.tools.len() {
+            let feedback = palpa::daemon::feedback_of(world, tool, true, false, (0, 0));
+            sink.feedback(tool, &feedback);
+        }
+        let _ = meshes.produce(world, |header, bytes| -> Result<(), ()> {
+            sink.mesh(header, bytes);
+            Ok(())
+        });
+        if world.tick % 1000 == 0 {
+            sink.stats(&StatsV1 {
+                tick: world.tick,
+                ..StatsV1::default()
+            });
+            sink.event(world.tick, event::SYNCHRONICITY_MISS, None);
+        }
+    };
+    for _ in 0..2500 {
+        tick(&mut world, &mut meshes, &mut known);
+    }
+    ALLOCATIONS.store(0, Ordering::SeqCst);
+    set_counting(true);
+    for _ in 0..3000 {
+        tick(&mut world, &mut meshes, &mut known);
+    }
+    set_counting(false);
+    let count = ALLOCATIONS.load(Ordering::SeqCst);
+    let (recorded, live) = sink.finish_all();
+    let recorded = recorded.unwrap().unwrap();
+    let live = live.unwrap();
+    let _ = std::fs::remove_file(&path);
+    assert_eq!(count, 0, "{count} allocations in 3000 ticks");
+    // The recording got the whole stream (one SceneUpdate per display tick: every 17 ticks and the
+    // keyframe ticks 1, 2001, 4001 of 5 500), the live view what it could take.
+    assert_eq!(recorded.dropped, 0);
+    let display_ticks = (1..=5500u64)
+        .filter(|t| t % 17 == 0 || (t - 1) % 2000 == 0)
+        .count() as u64;
+    assert_eq!(recorded.messages["/foxglove/scene"], display_ticks);
+    let shown = live.messages.get("/foxglove/scene").copied().unwrap_or(0);
+    assert!(shown > 0 && shown <= display_ticks, "{live:?}");
 }
