@@ -1,6 +1,6 @@
-//! Real time: after warm-up, a step allocates nothing, nor does what the tick hands to a recording and
-//! a live view. A counting global allocator watches the heap
-//! while the world steps scenes with every system of the core model switched on.
+//! Real time: after warm-up, a step allocates nothing, nor does what the tick hands to a recording
+//! and a live view. A counting global allocator watches the heap while the world steps scenes with
+//! every system of the core model switched on.
 
 mod common;
 
