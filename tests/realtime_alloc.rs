@@ -250,7 +250,7 @@ fn recording_and_the_live_view_allocate_nothing_on_the_tick() {
         orientation: [1.0, 0.0, 0.0, 0.0],
         ..ToolPoseV1::default()
     };
-    let mut tick = |world: &mut World, meshes: &mut MeshSchedule, known: &mut usize| {
+    let tick = |world: &mut World, meshes: &mut MeshSchedule, known: &mut usize| {
         sink.input(world.tick, 0, &pose, 0);
         world.step();
         sink.bodies_added(world, known);
