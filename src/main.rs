@@ -648,8 +648,9 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
     let exe = std::env::current_exe().context("cannot find the palpa executable")?;
     let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}`) and {} simulated Geomagic Touch ({})",
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}`) and {} simulated Geomagic Touch ({})",
         if rt { " --rt" } else { "" },
+        live.map(|a| format!(" --live {a}")).unwrap_or_default(),
         devices.len(),
         tools.join(", ")
     );
