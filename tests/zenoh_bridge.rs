@@ -1,8 +1,9 @@
 //! `palpa-zenoh` between a daemon and a Zenoh client in another process: the client (this test
 //! process, in client mode, connected to the bridge's listen endpoint) presses the organ with poses
 //! published on `palpa/<prefix>/tool/probe/pose`; every pose is answered on `.../feedback`, with force
-//! while pressed and none after lift-off; the daemon's input checks apply to remote poses; a payload
-//! of the wrong size is refused by the bridge. With the Python client (`tools/python/zenoh_client.py`,
+//! while pressed and none after lift-off; the daemon's statistics arrive on `palpa/<prefix>/stats`;
+//! the daemon's input checks apply to remote poses; a payload of the wrong size is refused by the
+//! bridge. With the Python client (`tools/python/zenoh_client.py`,
 //! PyPI `eclipse-zenoh`), the same press and a remote display of the mesh stream.
 #![cfg(feature = "zenoh")]
 
@@ -11,7 +12,7 @@ mod common;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use palpa::ipc::payload::{FEEDBACK_REJECTED, ToolFeedbackV1, ToolPoseV1, WireV1};
+use palpa::ipc::payload::{FEEDBACK_REJECTED, StatsV1, ToolFeedbackV1, ToolPoseV1, WireV1};
 use zenoh::Wait;
 
 fn free_port() -> u16 {
@@ -121,6 +122,10 @@ fn a_remote_client_presses_the_organ_through_the_bridge() {
         .declare_publisher(format!("{base}/pose"))
         .wait()
         .unwrap();
+    let stats = session
+        .declare_subscriber(format!("palpa/{prefix}/stats"))
+        .wait()
+        .unwrap();
     // Waits for the feedback `accept` takes (a watchdog, not a timing assertion: a lockstep daemon
     // answers every pose it gets).
     let wait_for = |accept: &dyn Fn(&ToolFeedbackV1) -> bool, resend: &dyn Fn()| {
@@ -180,11 +185,24 @@ fn a_remote_client_presses_the_organ_through_the_bridge() {
     let f = wait_for(&|f| f.flags & FEEDBACK_REJECTED != 0, &|| {});
     assert_eq!(f.seq, steps, "the answer echoes the last good pose: {f:?}");
     assert!(f.force.iter().all(|x| x.is_finite()));
+    // The daemon's statistics, once a simulated second: 2 600 ticks stepped, two windows.
+    let mut windows = Vec::new();
+    while let Ok(Some(sample)) = stats.try_recv() {
+        windows.push(StatsV1::read_le(&sample.payload().to_bytes()).expect("stats of 128 bytes"));
+    }
+    let ticks: Vec<u64> = windows.iter().map(|s| s.tick).collect();
+    assert_eq!(ticks, [1000, 2000], "{windows:?}");
+    assert!(
+        windows
+            .iter()
+            .all(|s| s.window_ticks == 1000 && s.tools_connected == 1)
+    );
     // A payload that is not a palpa_tool_pose_v1 (87 bytes) never reaches the daemon.
     poses.put(vec![0u8; 87]).wait().unwrap();
     std::thread::sleep(Duration::from_millis(300));
     drop(poses);
     drop(feedback);
+    drop(stats);
     session.close().wait().unwrap();
 
     let bridge = &mut processes.0[1];
