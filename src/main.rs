@@ -74,7 +74,7 @@ enum Command {
         rt: bool,
         /// Show the session live to Foxglove on [HOST:]PORT (see `palpa serve --live`).
         #[cfg(feature = "live")]
-        #[arg(long, value_name = "[HOST:]PORT")]
+        #[arg(long, value_name = "[HOST:]PORT", value_parser = palpa::record::live::address_argument)]
         live: Option<String>,
     },
 }
@@ -126,7 +126,7 @@ struct ServeArgs {
     /// omitted; 0.0.0.0 for other machines; port 0 picks a free one). Open ws://HOST:PORT in
     /// Foxglove ("Open connection", Foxglove WebSocket).
     #[cfg(feature = "live")]
-    #[arg(long, value_name = "[HOST:]PORT")]
+    #[arg(long, value_name = "[HOST:]PORT", value_parser = palpa::record::live::address_argument)]
     live: Option<String>,
 }
 

@@ -170,6 +170,26 @@ fn numeric_options_refuse_zero_negative_and_non_finite_values() {
         assert_eq!(out.status.code(), Some(2), "{option} {value}: {t}");
         assert!(t.contains(&format!("invalid value '{value}'")), "{t}");
     }
+    for (args, option) in [
+        (&["serve", "--live", "abc:def"][..], "--live"),
+        (&["serve", "--live", "70000"], "--live"),
+        (&["demo", "--live", "host.invalid"], "--live"),
+    ] {
+        let out = palpa(args);
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
+        assert!(t.contains(&format!("for '{option}")), "{t}");
+        assert!(t.contains("expected [HOST:]PORT"), "{t}");
+    }
+    for (option, value) in [("--duration", "0"), ("--duration", "NaN"), ("--wait", "-1")] {
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa-zenoh"))
+            .args(["--listen", "tcp/127.0.0.1:0", option, value])
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{option} {value}: {t}");
+        assert!(t.contains("must be a "), "{t}");
+    }
     for args in [
         ["latency", "--duration", "0"],
         ["latency", "--duration", "NaN"],

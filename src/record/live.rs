@@ -181,6 +181,12 @@ impl Drop for LiveServer {
     }
 }
 
+/// `--live [HOST:]PORT` as a command-line value: the text, once [`parse_address`] accepts it (so a
+/// bad address is a usage error before anything starts).
+pub fn address_argument(text: &str) -> Result<String, String> {
+    parse_address(text).map(|_| text.to_string())
+}
+
 impl LiveView {
     /// Starts the server on `address` (port 0: a free one, see [`LiveView::address`]) for a session
     /// of `world`, and the publisher thread.

@@ -47,13 +47,13 @@ struct Args {
     #[arg(long, value_name = "ENDPOINT")]
     connect: Vec<String>,
     /// Stop after this many seconds (wall clock); until Ctrl-C or SIGTERM when omitted.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = palpa::daemon::values::positive)]
     duration: Option<f64>,
     /// Turn Zenoh's multicast scouting on (off by default: peers meet through the endpoints).
     #[arg(long)]
     scout: bool,
     /// Seconds to wait for the daemon's services to appear.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true, value_parser = palpa::daemon::values::non_negative)]
     wait: f64,
 }
 
@@ -121,11 +121,6 @@ fn main() -> ExitCode {
 fn run(args: Args) -> Result<()> {
     if args.listen.is_empty() && args.connect.is_empty() && !args.scout {
         bail!("give at least one --listen or --connect endpoint (or --scout)");
-    }
-    if let Some(d) = args.duration
-        && !(d.is_finite() && d > 0.0)
-    {
-        bail!("--duration must be > 0");
     }
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = stop.clone();
