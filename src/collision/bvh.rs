@@ -42,6 +42,9 @@ pub struct TriangleBvh {
     side_keys: Vec<(u32, u32, u32)>,
     /// Scratch of the ownership pass: whether a node was met yet.
     node_seen: Vec<bool>,
+    /// Scratch of the refit: each node's box over the tick (a node is shared by about six
+    /// triangles: its box is taken once).
+    node_boxes: Vec<Aabb>,
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
@@ -75,6 +78,7 @@ impl TriangleBvh {
             owned: Vec::with_capacity(triangles),
             side_keys: Vec::with_capacity(3 * triangles),
             node_seen: Vec::with_capacity(3 * triangles + 3),
+            node_boxes: Vec::with_capacity(3 * triangles + 3),
         }
     }
 
@@ -160,6 +164,20 @@ impl TriangleBvh {
     /// Refits every box to the triangles swept from `start` to `end` positions, grown by `margin`.
     /// Children come after their parent in the node array, so one backward pass suffices.
     pub fn refit(&mut self, triangles: &[[u32; 3]], start: &[Vec3], end: &[Vec3], margin: f64) {
+        // Each node's box once (the minima and maxima of the same six points as a triangle's own
+        // include: the same boxes), unless the nodes outnumber the room reserved for them.
+        let nodes = start.len().min(end.len());
+        let per_node = nodes <= self.node_boxes.capacity();
+        if per_node {
+            self.node_boxes.clear();
+            self.node_boxes
+                .extend(start[..nodes].iter().zip(&end[..nodes]).map(|(s, e)| {
+                    let mut own = Aabb::empty();
+                    own.include(s);
+                    own.include(e);
+                    own
+                }));
+        }
         for k in (0..self.nodes.len()).rev() {
             let node = self.nodes[k];
             let mut aabb = Aabb::empty();
@@ -168,8 +186,14 @@ impl TriangleBvh {
                 for &t in &self.order[first..first + node.count as usize] {
                     let mut own = Aabb::empty();
                     for &v in &triangles[t as usize] {
-                        own.include(&start[v as usize]);
-                        own.include(&end[v as usize]);
+                        if per_node {
+                            let b = &self.node_boxes[v as usize];
+                            own.min = own.min.inf(&b.min);
+                            own.max = own.max.sup(&b.max);
+                        } else {
+                            own.include(&start[v as usize]);
+                            own.include(&end[v as usize]);
+                        }
                     }
                     own.inflate(margin);
                     self.triangle_boxes[t as usize] = own;
