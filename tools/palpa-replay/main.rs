@@ -56,7 +56,12 @@ struct Args {
     prefix: String,
     /// With --play: also show the session to Foxglove on [HOST:]PORT (a WebSocket server, as
     /// `palpa serve --live`: its scene, feedback, statistics and events as recorded).
-    #[arg(long, value_name = "[HOST:]PORT", value_parser = palpa::record::live::address_argument)]
+    #[arg(
+        long,
+        requires = "play",
+        value_name = "[HOST:]PORT",
+        value_parser = palpa::record::live::address_argument
+    )]
     live: Option<String>,
     /// Print a summary of the session.
     #[arg(long)]
