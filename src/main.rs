@@ -661,14 +661,11 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
     if let Some(address) = live {
         #[cfg(feature = "live")]
         {
-            let parsed =
-                palpa::record::live::parse_address(address).map_err(|e| anyhow::anyhow!(e))?;
-            let mut shown = parsed;
-            if shown.ip().is_unspecified() {
-                shown.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
-            }
+            use palpa::record::live::{parse_address, viewer_url};
+            let parsed = parse_address(address).map_err(|e| anyhow::anyhow!(e))?;
             println!(
-                "palpa demo: live view: open ws://{shown} in Foxglove (Open connection, Foxglove WebSocket)"
+                "palpa demo: live view: open {} in Foxglove (Open connection, Foxglove WebSocket)",
+                viewer_url(parsed)
             );
         }
         serve_args.extend(["--live", address]);

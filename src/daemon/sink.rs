@@ -58,12 +58,6 @@ impl RecordSink {
         self
     }
 
-    /// The live view, if the session has one.
-    #[cfg(feature = "live")]
-    pub fn live(&self) -> Option<&crate::record::live::LiveView> {
-        self.live.as_ref()
-    }
-
     /// Hands the record `make` builds to the recorder and to the live view (built once for each).
     #[cfg(feature = "record")]
     fn each(&self, make: impl Fn() -> Record) {

@@ -72,7 +72,6 @@ impl Default for LiveSettings {
 pub struct LiveView {
     records: RecordQueue,
     done: Arc<AtomicBool>,
-    address: SocketAddr,
     url: String,
     thread: Option<JoinHandle<LiveSummary>>,
 }
@@ -147,13 +146,9 @@ impl LiveServer {
         self.address
     }
 
-    /// The address to open in Foxglove (a wildcard host shown as the loopback one).
+    /// The address to open in Foxglove.
     pub fn url(&self) -> String {
-        let mut shown = self.address;
-        if shown.ip().is_unspecified() {
-            shown.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
-        }
-        format!("ws://{shown}")
+        viewer_url(self.address)
     }
 
     /// Viewers that connected so far.
@@ -181,6 +176,16 @@ impl Drop for LiveServer {
     }
 }
 
+/// The address a viewer opens for a server listening on `address`: `ws://HOST:PORT`, a wildcard host
+/// shown as the loopback one.
+pub fn viewer_url(address: SocketAddr) -> String {
+    let mut shown = address;
+    if shown.ip().is_unspecified() {
+        shown.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
+    }
+    format!("ws://{shown}")
+}
+
 /// `--live [HOST:]PORT` as a command-line value: the text, once [`parse_address`] accepts it (so a
 /// bad address is a usage error before anything starts).
 pub fn address_argument(text: &str) -> Result<String, String> {
@@ -188,7 +193,7 @@ pub fn address_argument(text: &str) -> Result<String, String> {
 }
 
 impl LiveView {
-    /// Starts the server on `address` (port 0: a free one, see [`LiveView::address`]) for a session
+    /// Starts the server on `address` (port 0: a free one, see [`LiveView::url`]) for a session
     /// of `world`, and the publisher thread.
     pub fn start(
         address: SocketAddr,
@@ -203,7 +208,6 @@ impl LiveView {
             largest_mesh_message(world),
         );
         let done = Arc::new(AtomicBool::new(false));
-        let address = server.address();
         let url = server.url();
         let publisher = Publisher {
             records: records.share(),
@@ -224,15 +228,9 @@ impl LiveView {
         Ok(Self {
             records,
             done,
-            address,
             url,
             thread: Some(thread),
         })
-    }
-
-    /// Where viewers connect.
-    pub fn address(&self) -> SocketAddr {
-        self.address
     }
 
     /// The address to open in Foxglove.
@@ -248,11 +246,6 @@ impl LiveView {
     /// Copies a mesh message into a pooled buffer and hands it over; never blocks nor allocates.
     pub fn push_mesh(&self, header: &MeshHeaderV1, bytes: &[u8]) -> bool {
         self.records.push_mesh(header, bytes, &|| false)
-    }
-
-    /// Records dropped so far.
-    pub fn dropped(&self) -> u64 {
-        self.records.dropped()
     }
 
     /// Publishes what is queued, stops the server and returns what was done.

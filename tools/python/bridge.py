@@ -20,6 +20,8 @@ import time
 
 import iceoryx2 as iox2
 
+from press import press_height  # beside this script
+
 
 class ToolPoseV1(ctypes.Structure):
     """palpa_tool_pose_v1 (88 bytes)."""
@@ -70,22 +72,6 @@ def latest_value(node, name, payload):
         .enable_safe_overflow(True)
         .open_or_create()
     )
-
-
-def press_height(t, top):
-    """Tip height of a press: hover 3 cm above `top`, down 6 mm into it, hold, back up."""
-    def smooth(x):
-        x = min(max(x, 0.0), 1.0)
-        return x * x * (3 - 2 * x)
-
-    above, depth = top + 0.03, top - 0.006
-    if t < 0.3:
-        return above
-    if t < 1.3:
-        return above + (depth - above) * smooth(t - 0.3)
-    if t < 1.8:
-        return depth
-    return depth + (above - depth) * smooth((t - 1.8) / 0.8)
 
 
 def main():

@@ -28,26 +28,12 @@ import time
 
 import zenoh
 
+from press import press_height  # beside this script
+
 POSE = struct.Struct("<QQ3d4ddII")  # palpa_tool_pose_v1, 88 bytes
 FEEDBACK = struct.Struct("<QQQ3d3dII")  # palpa_tool_feedback_v1, 80 bytes
 MESH_HEADER = struct.Struct("<IIQQIIII")  # palpa_mesh_header_v1, 40 bytes
 assert POSE.size == 88 and FEEDBACK.size == 80 and MESH_HEADER.size == 40
-
-
-def press_height(t, top):
-    """Tip height of a press: hover 3 cm above `top`, down 6 mm into it, hold, back up."""
-    def smooth(x):
-        x = min(max(x, 0.0), 1.0)
-        return x * x * (3 - 2 * x)
-
-    above, depth = top + 0.03, top - 0.006
-    if t < 0.3:
-        return above
-    if t < 1.3:
-        return above + (depth - above) * smooth(t - 0.3)
-    if t < 1.8:
-        return depth
-    return depth + (above - depth) * smooth((t - 1.8) / 0.8)
 
 
 def open_session(connect):
