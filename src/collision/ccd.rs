@@ -56,6 +56,7 @@
 //! ```
 
 use crate::Vec3;
+use std::mem::MaybeUninit;
 
 /// Settings of the inclusion-based root finder.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -214,7 +215,7 @@ const MAX_LEVEL: u32 = 52;
 /// none of the benchmark's hand-made degenerate queries fills the large one. A full large queue
 /// ends the query as an exhausted hit, like the box budget.
 const SMALL_QUEUE: usize = 32;
-/// See [`SMALL_QUEUE`]. 1024 entries of 32 bytes.
+/// See [`SMALL_QUEUE`]. 1024 entries of 64 bytes (a key of 16, a box of 40, aligned), on the stack.
 const LARGE_QUEUE: usize = 1024;
 
 /// The effective tolerance is at least this many rounding error bounds, so that a box can always be
@@ -335,18 +336,39 @@ fn priority(b: &ParamBox) -> u128 {
     (start << 32) | u128::from(u32::MAX - depth)
 }
 
-/// A binary min-heap of boxes by [`priority`] in a fixed array: no allocation.
+/// A binary min-heap of boxes by [`priority`] in a fixed array: no allocation, and no
+/// initialisation either (the large queue is 64 KiB, which writing out would cost microseconds
+/// on every query that needs it): only the slots below `len` are ever read, and each was written.
 struct Queue<const N: usize> {
-    items: [(u128, ParamBox); N],
+    items: [MaybeUninit<(u128, ParamBox)>; N],
     len: usize,
 }
 
 impl<const N: usize> Queue<N> {
     fn new() -> Self {
         Queue {
-            items: [(0, ParamBox::WHOLE); N],
+            items: [const { MaybeUninit::uninit() }; N],
             len: 0,
         }
+    }
+
+    /// Item `i` (below `len`).
+    #[inline(always)]
+    fn get(&self, i: usize) -> (u128, ParamBox) {
+        assert!(i < self.len, "a queue slot past its length");
+        // SAFETY: every slot below `len` holds an item: `push` writes slot `len` before `len`
+        // counts it, and the sifts only copy items between slots below `len`.
+        unsafe { self.items[i].assume_init() }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, item: (u128, ParamBox)) {
+        self.items[i] = MaybeUninit::new(item);
+    }
+
+    /// The items waiting, in heap order.
+    fn pending(&self) -> impl Iterator<Item = ParamBox> + '_ {
+        (0..self.len).map(|i| self.get(i).1)
     }
 
     /// The caller checks that there is room.
@@ -357,13 +379,14 @@ impl<const N: usize> Queue<N> {
         self.len += 1;
         while i > 0 {
             let parent = (i - 1) / 2;
-            if self.items[parent].0 <= key {
+            let above = self.get(parent);
+            if above.0 <= key {
                 break;
             }
-            self.items[i] = self.items[parent];
+            self.set(i, above);
             i = parent;
         }
-        self.items[i] = (key, b);
+        self.set(i, (key, b));
     }
 
     #[inline(always)]
@@ -371,27 +394,68 @@ impl<const N: usize> Queue<N> {
         if self.len == 0 {
             return None;
         }
-        let top = self.items[0].1;
+        let top = self.get(0).1;
+        let last = self.get(self.len - 1);
         self.len -= 1;
-        let last = self.items[self.len];
         let mut i = 0;
         loop {
             let mut child = 2 * i + 1;
             if child >= self.len {
                 break;
             }
-            if child + 1 < self.len && self.items[child + 1].0 < self.items[child].0 {
+            if child + 1 < self.len && self.get(child + 1).0 < self.get(child).0 {
                 child += 1;
             }
-            if self.items[child].0 >= last.0 {
+            let below = self.get(child);
+            if below.0 >= last.0 {
                 break;
             }
-            self.items[i] = self.items[child];
+            self.set(i, below);
             i = child;
         }
-        self.items[i] = last;
+        self.set(i, last);
         Some(top)
     }
+}
+
+/// Time intervals whose witness was looked for in vain, the last few. The witness of a box depends
+/// only on its time interval (its (u, v) is sought over the whole domain), which the boxes split
+/// along u and v share: the search asks again for the same one, often many times in a row. A pure
+/// function remembered, so the answers and their bits are those of the search without it.
+#[derive(Default)]
+struct WitnessMemo {
+    failed: [(u64, u64); WITNESS_MEMO],
+    next: usize,
+}
+
+/// Failed witness searches remembered (the boxes pending at a time interval are few).
+const WITNESS_MEMO: usize = 4;
+
+impl WitnessMemo {
+    /// Bits, not values: the interval is the same only if its ends are the same floats (and
+    /// (0, 0), the empty slot, is no interval).
+    fn key(t: (f64, f64)) -> (u64, u64) {
+        (t.0.to_bits(), t.1.to_bits())
+    }
+
+    #[inline(always)]
+    fn holds(&self, t: (f64, f64)) -> bool {
+        let key = Self::key(t);
+        self.failed.contains(&key)
+    }
+
+    #[inline(always)]
+    fn insert(&mut self, t: (f64, f64)) {
+        self.failed[self.next] = Self::key(t);
+        self.next = (self.next + 1) % WITNESS_MEMO;
+    }
+}
+
+/// What a search has done so far: boxes examined, failed witnesses.
+#[derive(Default)]
+struct SearchState {
+    boxes: u32,
+    failed_witnesses: WitnessMemo,
 }
 
 /// What to do with a box after evaluating F at its corners.
@@ -504,10 +568,10 @@ impl ContactFunction {
     fn earliest_root_here(&self, max_boxes: u32) -> Option<CcdHit> {
         let mut queue = Queue::<SMALL_QUEUE>::new();
         queue.push(ParamBox::WHOLE);
-        let mut boxes = 0u32;
-        match self.search(&mut queue, &mut boxes, max_boxes) {
+        let mut state = SearchState::default();
+        match self.search(&mut queue, &mut state, max_boxes) {
             Ok(result) => result,
-            Err(halves) => self.search_on(&queue, halves, boxes, max_boxes),
+            Err(halves) => self.search_on(&queue, halves, state, max_boxes),
         }
     }
 
@@ -518,24 +582,20 @@ impl ContactFunction {
         &self,
         small: &Queue<SMALL_QUEUE>,
         halves: [ParamBox; 2],
-        mut boxes: u32,
+        mut state: SearchState,
         max_boxes: u32,
     ) -> Option<CcdHit> {
         let mut queue = Queue::<LARGE_QUEUE>::new();
-        for b in small.items[..small.len]
-            .iter()
-            .map(|item| item.1)
-            .chain(halves)
-        {
+        for b in small.pending().chain(halves) {
             queue.push(b);
         }
-        match self.search(&mut queue, &mut boxes, max_boxes) {
+        match self.search(&mut queue, &mut state, max_boxes) {
             Ok(result) => result,
             // The box just split started earliest among the pending ones, and its lower half
             // starts where it did: a conservative stop.
             Err([lower, _]) => Some(CcdHit {
                 time_of_impact: lower.t.0,
-                boxes,
+                boxes: state.boxes,
                 exhausted: true,
             }),
         }
@@ -547,9 +607,10 @@ impl ContactFunction {
     fn search<const N: usize>(
         &self,
         queue: &mut Queue<N>,
-        boxes: &mut u32,
+        state: &mut SearchState,
         max_boxes: u32,
     ) -> Result<Option<CcdHit>, [ParamBox; 2]> {
+        let boxes = &mut state.boxes;
         while let Some(current) = queue.pop() {
             let t_lo = current.t.0;
             if *boxes >= max_boxes {
@@ -561,7 +622,7 @@ impl ContactFunction {
                 }));
             }
             *boxes += 1;
-            let verdict = self.evaluate(&current);
+            let verdict = self.evaluate(&current, &mut state.failed_witnesses);
             match verdict {
                 Verdict::Reject => {}
                 Verdict::Accept => {
@@ -586,7 +647,7 @@ impl ContactFunction {
 
     /// Corner values of F over the box, exclusion tests, acceptance, choice of the split.
     #[inline(always)]
-    fn evaluate(&self, b: &ParamBox) -> Verdict {
+    fn evaluate(&self, b: &ParamBox, failed_witnesses: &mut WitnessMemo) -> Verdict {
         let (t_lo, t_hi) = b.t;
         let (u_lo, u_hi) = b.u.bounds();
         let (v_lo, v_hi) = b.v.bounds();
@@ -642,8 +703,11 @@ impl ContactFunction {
         // point and checked with the rigorous bound. If F is within the tolerance there, the box
         // is a hit at t_lo, as if it had been split down to a box around that point.
         let start_face = start_face_bounds(&corners);
-        if self.start_face_within_tolerance(&start_face) && self.witness_at(t_lo, t_hi) {
-            return Verdict::Accept;
+        if self.start_face_within_tolerance(&start_face) && !failed_witnesses.holds(b.t) {
+            if self.witness_at(t_lo, t_hi) {
+                return Verdict::Accept;
+            }
+            failed_witnesses.insert(b.t);
         }
         // Split the parameter along which F changes most over the box: "widest" measured in the
         // units of F, so a parameter that F hardly depends on is not split in vain.
@@ -879,17 +943,21 @@ impl ContactFunction {
         ];
         // Scaled by a power of two (exact) so that its products stay as large as the others'.
         let normal = scaled_to_unit_exponent(cross(&du, &dv));
-        for r in [
+        let directions = [
             normal,
             cross(&dv, &dt),
             cross(&dt, &du),
             cross(&du, &normal),
             cross(&dv, &normal),
-        ] {
-            let mut bound = f64::MIN_POSITIVE;
-            for k in 0..3 {
-                bound += r[k].abs() * (self.error[k] + 4.0 * epsilon * magnitude[k]);
-            }
+        ];
+        let weight: [f64; 3] =
+            std::array::from_fn(|k| self.error[k] + 4.0 * epsilon * magnitude[k]);
+        // All five bounds first, side by side (each summed in the same order as one at a time).
+        let bounds = directions.map(|r| {
+            ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1])
+                + r[2].abs() * weight[2]
+        });
+        for (r, bound) in directions.iter().zip(bounds) {
             let mut x = [[0.0f64; 4]; 2];
             // Indexed loops: measurably faster here than the zipped iterators clippy suggests.
             for i in 0..2 {
