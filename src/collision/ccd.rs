@@ -215,7 +215,7 @@ const MAX_LEVEL: u32 = 52;
 /// none of the benchmark's hand-made degenerate queries fills the large one. A full large queue
 /// ends the query as an exhausted hit, like the box budget.
 const SMALL_QUEUE: usize = 32;
-/// See [`SMALL_QUEUE`]. 1024 entries of 64 bytes (a key of 16, a box of 40, aligned), on the stack.
+/// See [`SMALL_QUEUE`]. 1024 boxes of 64 bytes, on the stack.
 const LARGE_QUEUE: usize = 1024;
 
 /// The effective tolerance is at least this many rounding error bounds, so that a box can always be
@@ -234,34 +234,51 @@ const LARGEST_MAGNITUDE: f64 = 1e300;
 /// skipped, as it could overflow. Below it, at most 96 S³ < 1e303.
 const LARGEST_MAGNITUDE_FOR_ROWS: f64 = 1e100;
 
-/// One dyadic interval of [0, 1] as a node of the implicit binary tree: the root [0, 1] is 1, the
-/// children of n are 2n (lower half) and 2n + 1 (upper half); the level is the bit length minus one.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Dyadic(u64);
+/// One dyadic interval [k / 2^level, (k + 1) / 2^level] of [0, 1], its ends kept as floats (exact:
+/// k < 2^52) so that a box's examination does not rebuild them from bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Dyadic {
+    lo: f64,
+    hi: f64,
+    level: u32,
+}
 
 impl Dyadic {
-    const WHOLE: Dyadic = Dyadic(1);
+    const WHOLE: Dyadic = Dyadic {
+        lo: 0.0,
+        hi: 1.0,
+        level: 0,
+    };
 
     fn level(self) -> u32 {
-        63 - self.0.leading_zeros()
+        self.level
     }
 
-    /// Both ends, exactly: k / 2^level and (k + 1) / 2^level, with k < 2^52.
+    /// Both ends, exactly.
     fn bounds(self) -> (f64, f64) {
-        let level = self.level();
-        let k = self.0 - (1u64 << level);
-        // 2^−level from its bits: exact, no libm call.
-        let scale = f64::from_bits(u64::from(1023 - level) << 52);
-        // Through i64 (k < 2^52): one conversion instruction, unlike u64 → f64 on x86-64.
-        ((k as i64) as f64 * scale, ((k + 1) as i64) as f64 * scale)
+        (self.lo, self.hi)
+    }
+
+    /// (2k + 1) / 2^(level + 1), exactly: the width is a power of two, its half too, and the sum
+    /// has at most 53 significant bits below level 53.
+    fn middle(self) -> f64 {
+        self.lo + 0.5 * (self.hi - self.lo)
     }
 
     fn lower_half(self) -> Dyadic {
-        Dyadic(self.0 << 1)
+        Dyadic {
+            lo: self.lo,
+            hi: self.middle(),
+            level: self.level + 1,
+        }
     }
 
     fn upper_half(self) -> Dyadic {
-        Dyadic((self.0 << 1) | 1)
+        Dyadic {
+            lo: self.middle(),
+            hi: self.hi,
+            level: self.level + 1,
+        }
     }
 }
 
@@ -340,7 +357,7 @@ fn priority(b: &ParamBox) -> u128 {
 /// initialisation either (the large queue is 64 KiB, which writing out would cost microseconds
 /// on every query that needs it): only the slots below `len` are ever read, and each was written.
 struct Queue<const N: usize> {
-    items: [MaybeUninit<(u128, ParamBox)>; N],
+    items: [MaybeUninit<ParamBox>; N],
     len: usize,
 }
 
@@ -354,7 +371,7 @@ impl<const N: usize> Queue<N> {
 
     /// Item `i` (below `len`).
     #[inline(always)]
-    fn get(&self, i: usize) -> (u128, ParamBox) {
+    fn get(&self, i: usize) -> ParamBox {
         assert!(i < self.len, "a queue slot past its length");
         // SAFETY: every slot below `len` holds an item: `push` writes slot `len` before `len`
         // counts it, and the sifts only copy items between slots below `len`.
@@ -362,13 +379,13 @@ impl<const N: usize> Queue<N> {
     }
 
     #[inline(always)]
-    fn set(&mut self, i: usize, item: (u128, ParamBox)) {
+    fn set(&mut self, i: usize, item: ParamBox) {
         self.items[i] = MaybeUninit::new(item);
     }
 
     /// The items waiting, in heap order.
     fn pending(&self) -> impl Iterator<Item = ParamBox> + '_ {
-        (0..self.len).map(|i| self.get(i).1)
+        (0..self.len).map(|i| self.get(i))
     }
 
     /// The caller checks that there is room.
@@ -380,13 +397,13 @@ impl<const N: usize> Queue<N> {
         while i > 0 {
             let parent = (i - 1) / 2;
             let above = self.get(parent);
-            if above.0 <= key {
+            if priority(&above) <= key {
                 break;
             }
             self.set(i, above);
             i = parent;
         }
-        self.set(i, (key, b));
+        self.set(i, b);
     }
 
     #[inline(always)]
@@ -394,8 +411,9 @@ impl<const N: usize> Queue<N> {
         if self.len == 0 {
             return None;
         }
-        let top = self.get(0).1;
+        let top = self.get(0);
         let last = self.get(self.len - 1);
+        let last_key = priority(&last);
         self.len -= 1;
         let mut i = 0;
         loop {
@@ -403,11 +421,11 @@ impl<const N: usize> Queue<N> {
             if child >= self.len {
                 break;
             }
-            if child + 1 < self.len && self.get(child + 1).0 < self.get(child).0 {
+            if child + 1 < self.len && priority(&self.get(child + 1)) < priority(&self.get(child)) {
                 child += 1;
             }
             let below = self.get(child);
-            if below.0 >= last.0 {
+            if priority(&below) >= last_key {
                 break;
             }
             self.set(i, below);
