@@ -113,12 +113,54 @@ impl Contact {
     }
 }
 
+/// A contact's nodes of non-zero weight, in the order of [`Contact::nodes`] (side a's weights, then
+/// side b's negated), with their inverse masses for the response: fixed over a tick's solves, so the
+/// sweeps read them from one place rather than going through the iterator and the tool check.
+#[derive(Clone, Copy, Debug)]
+struct ContactNodes {
+    count: usize,
+    refs: [NodeRef; 5],
+    weights: [f64; 5],
+    inverse_masses: [f64; 5],
+}
+
+impl ContactNodes {
+    fn of(bodies: &[Body], c: &Contact) -> Self {
+        let mut nodes = ContactNodes {
+            count: 0,
+            refs: [NodeRef { body: 0, node: 0 }; 5],
+            weights: [0.0; 5],
+            inverse_masses: [0.0; 5],
+        };
+        for (r, w) in c.nodes() {
+            nodes.refs[nodes.count] = r;
+            nodes.weights[nodes.count] = w;
+            nodes.inverse_masses[nodes.count] = inverse_mass_of(bodies, r);
+            nodes.count += 1;
+        }
+        nodes
+    }
+
+    /// Side a's point less side b's, from `value` of each node (the same sum as
+    /// [`Contact::relative`]).
+    #[inline(always)]
+    fn relative(&self, value: impl Fn(NodeRef) -> Vec3) -> Vec3 {
+        let mut sum = Vec3::zeros();
+        for i in 0..self.count {
+            sum += value(self.refs[i]) * self.weights[i];
+        }
+        sum
+    }
+}
+
 /// Scratch memory of the stage, sized when the world is assembled.
 #[derive(Clone, Debug)]
 pub struct BodyContactScratch {
     bvhs: Vec<TriangleBvh>,
     pairs: Vec<(u32, u32)>,
     contacts: Vec<Contact>,
+    /// The nodes of each contact of `contacts` (after the one-per-vertex selection).
+    contact_nodes: Vec<ContactNodes>,
     found: Vec<u32>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
@@ -158,6 +200,7 @@ impl BodyContactScratch {
             bvhs,
             pairs: Vec::with_capacity(PAIR_CAPACITY),
             contacts: Vec::with_capacity(CONTACT_CAPACITY),
+            contact_nodes: Vec::with_capacity(CONTACT_CAPACITY),
             found: Vec::with_capacity(FOUND_CAPACITY),
             settings: CcdSettings::default(),
             bounds: Vec::with_capacity(count),
@@ -652,6 +695,7 @@ pub fn respond_to_body_contacts(
     scratch
         .contacts
         .dedup_by(|later, first| key(later) == key(first));
+    scratch.contact_nodes.clear();
     for c in scratch.contacts.iter_mut() {
         let (a, b) = (c.a[0].body, c.b[0].body);
         c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
@@ -659,6 +703,7 @@ pub fn respond_to_body_contacts(
             .nodes()
             .map(|(r, w)| w * w * inverse_mass_of(bodies, r))
             .sum::<f64>();
+        scratch.contact_nodes.push(ContactNodes::of(bodies, c));
     }
     counters.contacts = scratch.contacts.len() as u32;
     // Two solves with the same contacts: the displacements over the tick (where the nodes end: no
@@ -669,7 +714,7 @@ pub fn respond_to_body_contacts(
     // pair's momentum by equal and opposite amounts.
     solve(
         bodies,
-        &mut scratch.contacts,
+        (&mut scratch.contacts, &scratch.contact_nodes),
         (&mut scratch.forces, &mut scratch.work),
         dt,
         Solve::Displacement,
@@ -681,7 +726,7 @@ pub fn respond_to_body_contacts(
     }
     solve(
         bodies,
-        &mut scratch.contacts,
+        (&mut scratch.contacts, &scratch.contact_nodes),
         (&mut scratch.forces, &mut scratch.work),
         dt,
         Solve::Velocity,
@@ -800,21 +845,23 @@ enum Solve {
 /// and does not slip where friction holds.
 fn solve(
     bodies: &mut [Body],
-    contacts: &mut [Contact],
+    (contacts, contact_nodes): (&mut [Contact], &[ContactNodes]),
     (forces, work): (&mut [Vec3], &mut [f64]),
     dt: f64,
     what: Solve,
 ) {
     for _ in 0..SOLVER_ITERATIONS {
-        for c in contacts.iter_mut() {
+        for (c, nodes) in contacts.iter_mut().zip(contact_nodes) {
             if c.compliance <= 0.0 {
                 continue;
             }
             let relative = match what {
                 Solve::Displacement => {
-                    c.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt)
+                    nodes.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt)
                 }
-                Solve::Velocity => c.relative(|r| bodies[r.body].surface.velocity_in_world[r.node]),
+                Solve::Velocity => {
+                    nodes.relative(|r| bodies[r.body].surface.velocity_in_world[r.node])
+                }
             };
             // Normal: close the gap down to the rest distance, no more (closer than that: stop
             // closing; the positions are parted afterwards).
@@ -843,29 +890,35 @@ fn solve(
             if impulse == Vec3::zeros() {
                 continue;
             }
-            let c = *c;
-            apply_impulse(bodies, &c, &impulse, (&mut *forces, &mut *work), dt, what);
+            apply_impulse(
+                bodies,
+                nodes,
+                &impulse,
+                (&mut *forces, &mut *work),
+                dt,
+                what,
+            );
         }
     }
 }
 
-/// Applies `impulse` to contact `c`'s side a and, opposite, to side b, with their weights: the end
+/// Applies `impulse` to a contact's side a and, opposite, to side b, with their weights: the end
 /// velocities change, and (a displacement solve) the end positions with them. The body takes its
 /// share of the impulse; a node a tool moves passes it on to the tool (its motion is the tool's).
 fn apply_impulse(
     bodies: &mut [Body],
-    c: &Contact,
+    nodes: &ContactNodes,
     impulse: &Vec3,
     (forces, work): (&mut [Vec3], &mut [f64]),
     dt: f64,
     what: Solve,
 ) {
-    for (r, w) in c.nodes() {
+    for i in 0..nodes.count {
+        let (r, w, inverse_mass) = (nodes.refs[i], nodes.weights[i], nodes.inverse_masses[i]);
         forces[r.body] += impulse * (w / dt);
         work[r.body] += (impulse * w)
             .dot(&bodies[r.body].surface.velocity_in_world[r.node])
             .abs();
-        let inverse_mass = inverse_mass_of(bodies, r);
         if inverse_mass == 0.0 {
             continue;
         }
