@@ -102,6 +102,116 @@ fn the_batches_colour_every_edge_once_with_distinct_ends() {
     }
 }
 
+/// Checks `kernel`'s batches against `body`: every edge in exactly one lane, no node twice in a
+/// batch, and the forces they give equal to a fresh colouring's (to rounding: the order of the sums
+/// differs). Returns the largest force difference over the largest force.
+fn check_batches(kernel: &ForceKernel, body: &Body, gravity: &Vec3, context: &str) -> f64 {
+    let batches = kernel.batches();
+    let mut seen = vec![0u32; body.edges.len()];
+    for batch in batches.lanes() {
+        let mut ends = Vec::new();
+        for &k in batch {
+            if k == u32::MAX {
+                continue;
+            }
+            seen[k as usize] += 1;
+            ends.push(body.edges.a[k as usize]);
+            ends.push(body.edges.b[k as usize]);
+        }
+        let count = ends.len();
+        ends.sort_unstable();
+        ends.dedup();
+        assert_eq!(
+            ends.len(),
+            count,
+            "{context}: a batch touches a node twice: {batch:?}"
+        );
+    }
+    for (k, &n) in seen.iter().enumerate() {
+        let (a, b) = (body.edges.a[k], body.edges.b[k]);
+        let expected = u32::from(a != b);
+        assert_eq!(n, expected, "{context}: edge {k} ({a}, {b}) in {n} lanes");
+    }
+    let forces = |mut kernel: ForceKernel| {
+        let mut body = body.clone();
+        kernel.edge_forces(&body);
+        kernel.node_pass(&mut body, gravity, 1e-3, NodePass::Forces);
+        body.surface.force_in_world
+    };
+    let (followed, fresh) = (forces(kernel.clone()), forces(ForceKernel::new(body)));
+    let scale = fresh.iter().map(|f| f.norm()).fold(1e-12, f64::max);
+    let worst = followed
+        .iter()
+        .zip(&fresh)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 1e-12 * scale,
+        "{context}: forces {worst:e} N from a fresh colouring's (largest {scale:e} N)"
+    );
+    worst / scale
+}
+
+/// A topology change (subdivision and coarsening, cuts, a transection, tearing) patches the batches
+/// where the edges changed rather than colouring them all again: after every step that changed a
+/// body's edges, the patched batches hold each edge once, with distinct ends in a batch, and give a
+/// fresh colouring's forces.
+#[test]
+fn the_batches_follow_every_topology_change() {
+    let (mut patches, mut rebuilds, mut checks) = (0, 0, 0);
+    let mut worst: f64 = 0.0;
+    for (name, ticks) in [
+        ("scenes/probe_refine.toml", 1500),
+        ("scenes/incision.toml", 2500),
+        ("scenes/transection.toml", 1500),
+        ("scenes/tear.toml", 2500),
+    ] {
+        let scene = load_scene(&common::repo_root().join(name)).unwrap_or_else(|e| panic!("{e}"));
+        let mut world = World::from_scene(&scene);
+        let gravity = world.params.gravity;
+        let mut versions: Vec<u64> = Vec::new();
+        for tick in 0..ticks {
+            world.step();
+            for (b, body) in world.bodies.iter().enumerate() {
+                if versions.get(b) == Some(&body.topology_version) {
+                    continue;
+                }
+                if b < versions.len() {
+                    versions[b] = body.topology_version;
+                } else {
+                    versions.push(body.topology_version);
+                }
+                // The world patches at the next step's force pass: do it here on a copy.
+                let mut kernel = world.force_kernel(b).unwrap().clone();
+                kernel.refresh(body);
+                let context = format!("{name}, tick {tick}, {}", body.name);
+                worst = worst.max(check_batches(&kernel, body, &gravity, &context));
+                checks += 1;
+            }
+        }
+        let (mut scene_patches, mut scene_rebuilds) = (0, 0);
+        for b in 0..world.bodies.len() {
+            let (p, r) = world.force_kernel(b).unwrap().batches().history();
+            scene_patches += p;
+            scene_rebuilds += r;
+        }
+        println!("{name}: {scene_patches} patches, {scene_rebuilds} full colourings");
+        // Colourings: each body's first, and one after each transection (it renumbers the nodes).
+        let expected = world.bodies.len() as u64 + world.bodies.len() as u64 - 1;
+        assert!(
+            scene_rebuilds <= expected,
+            "{name}: {scene_rebuilds} full colourings, {expected} expected at most"
+        );
+        patches += scene_patches;
+        rebuilds += scene_rebuilds;
+    }
+    println!(
+        "{checks} topology changes checked: {patches} patches, {rebuilds} full colourings; \
+         largest force difference {worst:.1e} of the largest force"
+    );
+    assert!(patches >= 60, "only {patches} patches");
+}
+
 #[test]
 fn forces_and_energy_are_the_models() {
     let mut rng = Rng(7);

@@ -36,7 +36,89 @@ pub struct EdgeBatches {
     ends: Vec<[u32; 2 * LANES]>,
     /// Per node, the open slots (bits) whose batch holds it.
     in_open: Vec<u16>,
+    /// The edges as the lanes hold them (ends, and the bits of rest length, stiffness and damping):
+    /// what [`EdgeBatches::patch`] compares a changed body's edges with.
+    held: HeldEdges,
+    /// Lane of each edge (batch × LANES + lane; `u32::MAX`: in no lane).
+    lane_of: Vec<u32>,
+    /// Empty lanes (batch × LANES + lane), the most recent last.
+    holes: Vec<u32>,
+    /// Edges a patch places again (changed or new).
+    pending: Vec<u32>,
+    /// Nodes of the body the batches were made for.
+    nodes: usize,
+    /// Most edges the scratch has room for.
+    edge_capacity: usize,
+    /// Topology changes followed by a patch, and full colourings, since the start.
+    patched: u64,
+    rebuilt: u64,
 }
+
+/// A copy of a body's edges, field by field (compared bit for bit).
+#[derive(Clone, Debug, Default)]
+struct HeldEdges {
+    a: Vec<u32>,
+    b: Vec<u32>,
+    rest: Vec<f64>,
+    stiffness: Vec<f64>,
+    damping: Vec<f64>,
+}
+
+impl HeldEdges {
+    fn with_capacity(edges: usize) -> Self {
+        Self {
+            a: Vec::with_capacity(edges),
+            b: Vec::with_capacity(edges),
+            rest: Vec::with_capacity(edges),
+            stiffness: Vec::with_capacity(edges),
+            damping: Vec::with_capacity(edges),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.a.len()
+    }
+
+    /// Holds `edges[from..]` after the first `from`.
+    fn extend(&mut self, edges: &Edges, from: usize) {
+        self.a.extend_from_slice(&edges.a[from..]);
+        self.b.extend_from_slice(&edges.b[from..]);
+        self.rest.extend_from_slice(&edges.rest_length[from..]);
+        self.stiffness.extend_from_slice(&edges.stiffness[from..]);
+        self.damping.extend_from_slice(&edges.damping[from..]);
+    }
+
+    /// Holds `edges` (a copy of each array).
+    fn copy(&mut self, edges: &Edges) {
+        self.a.clear();
+        self.b.clear();
+        self.rest.clear();
+        self.stiffness.clear();
+        self.damping.clear();
+        self.extend(edges, 0);
+    }
+
+    fn set(&mut self, edges: &Edges, k: usize) {
+        self.a[k] = edges.a[k];
+        self.b[k] = edges.b[k];
+        self.rest[k] = edges.rest_length[k];
+        self.stiffness[k] = edges.stiffness[k];
+        self.damping[k] = edges.damping[k];
+    }
+
+    /// Whether edge `k` is as held (no branch: the comparison of all the edges vectorises).
+    #[inline(always)]
+    fn same(&self, edges: &Edges, k: usize) -> bool {
+        let ends = u64::from(self.a[k] ^ edges.a[k]) | u64::from(self.b[k] ^ edges.b[k]);
+        let values = (self.rest[k].to_bits() ^ edges.rest_length[k].to_bits())
+            | (self.stiffness[k].to_bits() ^ edges.stiffness[k].to_bits())
+            | (self.damping[k].to_bits() ^ edges.damping[k].to_bits());
+        ends | values == 0
+    }
+}
+
+/// Empty lanes a patch looks into for an edge before it opens a new batch (the most recent first).
+const HOLE_TRIES: usize = 32;
 
 /// Batches with room the colouring keeps looking into (more pack tighter and cost more; at most 16,
 /// the bits of a node's slot mask).
@@ -67,6 +149,14 @@ impl EdgeBatches {
             edge: Vec::with_capacity(edges),
             ends: Vec::with_capacity(edges),
             in_open: Vec::with_capacity(nodes),
+            held: HeldEdges::with_capacity(edges),
+            lane_of: Vec::with_capacity(edges),
+            holes: Vec::with_capacity(edges * LANES),
+            pending: Vec::with_capacity(edges),
+            nodes: 0,
+            edge_capacity: edges,
+            patched: 0,
+            rebuilt: 0,
         }
     }
 
@@ -97,6 +187,11 @@ impl EdgeBatches {
     /// The edge index of each lane of each batch (`u32::MAX` for an empty lane).
     pub fn lanes(&self) -> &[[u32; LANES]] {
         &self.edge
+    }
+
+    /// How the batches followed the body's edges since the start: (patches, full colourings).
+    pub fn history(&self) -> (u64, u64) {
+        (self.patched, self.rebuilt)
     }
 
     /// Colours `edges` of a body of `nodes` nodes: each edge, in index order, goes to the oldest of
@@ -184,6 +279,147 @@ impl EdgeBatches {
                 self.stiffness_damping.push(stiffness_damping);
             }
         }
+        // What a patch starts from: the edges as held, each edge's lane, the empty lanes.
+        self.held.copy(edges);
+        self.lane_of.clear();
+        self.lane_of.resize(count, u32::MAX);
+        self.holes.clear();
+        for (batch, lanes) in self.edge.iter().enumerate() {
+            for (lane, &k) in lanes.iter().enumerate() {
+                let slot = (batch * LANES + lane) as u32;
+                if k == u32::MAX {
+                    self.holes.push(slot);
+                } else {
+                    self.lane_of[k as usize] = slot;
+                }
+            }
+        }
+        self.nodes = nodes;
+        self.rebuilt += 1;
+    }
+
+    /// Follows a change of the body's edges where it happened, instead of colouring them all again:
+    /// an edge whose ends, rest length, stiffness or damping changed leaves its lane, and it and the
+    /// new edges go into empty lanes of batches that hold neither of their ends (the most recent
+    /// [`HOLE_TRIES`] empty lanes), or into new batches. A cut, a subdivision or a tear changes a
+    /// few dozen edges: the patch costs a comparison of the edges with the held copy and that many
+    /// placements. Returns false, leaving the batches to be built again, when it cannot follow
+    /// (edges or nodes removed, no room for a batch) or when empty lanes would be more than an
+    /// eighth of the edges. The layout then differs from a fresh colouring's, so the order in which
+    /// forces add up at a node does too: it depends on the history of the topology changes, which
+    /// a replay repeats, and on nothing else.
+    pub fn patch(&mut self, edges: &Edges, nodes: usize) -> bool {
+        let held = self.held.len();
+        let count = edges.len();
+        if count < held || nodes < self.nodes || count > self.edge_capacity {
+            return false;
+        }
+        self.pending.clear();
+        for k in 0..held {
+            if self.held.same(edges, k) {
+                continue;
+            }
+            self.held.set(edges, k);
+            let slot = self.lane_of[k];
+            if slot != u32::MAX {
+                self.empty(slot);
+                self.lane_of[k] = u32::MAX;
+            }
+            self.pending.push(k as u32);
+        }
+        self.held.extend(edges, held);
+        for k in held..count {
+            self.lane_of.push(u32::MAX);
+            self.pending.push(k as u32);
+        }
+        // A change of stiffness or damping (a spring cut in two) ends a uniform body's shortcut.
+        if let Some((k, c)) = self.uniform
+            && self.pending.iter().any(|&e| {
+                edges.stiffness[e as usize].to_bits() != k.to_bits()
+                    || edges.damping[e as usize].to_bits() != c.to_bits()
+            })
+        {
+            // Every edge still in a lane is unchanged, so it has the uniform values.
+            self.uniform = None;
+            self.stiffness_damping.clear();
+            for lanes in &self.edge {
+                let used = lanes.map(|e| e != u32::MAX);
+                self.stiffness_damping.push([
+                    used.map(|u| if u { k } else { 0.0 }),
+                    used.map(|u| if u { c } else { 0.0 }),
+                ]);
+            }
+        }
+        for i in 0..self.pending.len() {
+            let k = self.pending[i] as usize;
+            let (a, b) = (edges.a[k], edges.b[k]);
+            if a as usize >= nodes || b as usize >= nodes || a == b {
+                continue;
+            }
+            let tries = self.holes.len().min(HOLE_TRIES);
+            let found = (1..=tries)
+                .map(|back| self.holes.len() - back)
+                .find(|&h| self.takes(self.holes[h] as usize / LANES, a, b));
+            let slot = match found {
+                Some(h) => self.holes.swap_remove(h),
+                None => {
+                    if self.edge.len() >= self.edge_capacity {
+                        return false;
+                    }
+                    let batch = self.edge.len();
+                    self.edge.push([u32::MAX; LANES]);
+                    self.ends_of.push([[0; LANES]; 2]);
+                    self.rest.push([0.0; LANES]);
+                    if self.uniform.is_none() {
+                        self.stiffness_damping.push([[0.0; LANES]; 2]);
+                    }
+                    for lane in (1..LANES).rev() {
+                        self.holes.push((batch * LANES + lane) as u32);
+                    }
+                    (batch * LANES) as u32
+                }
+            };
+            let (batch, lane) = (slot as usize / LANES, slot as usize % LANES);
+            self.edge[batch][lane] = k as u32;
+            self.ends_of[batch][0][lane] = a;
+            self.ends_of[batch][1][lane] = b;
+            self.rest[batch][lane] = edges.rest_length[k];
+            if self.uniform.is_none() {
+                self.stiffness_damping[batch][0][lane] = edges.stiffness[k];
+                self.stiffness_damping[batch][1][lane] = edges.damping[k];
+            }
+            self.lane_of[k] = slot;
+        }
+        self.nodes = nodes;
+        let followed = self.holes.len() * 8 <= count;
+        self.patched += u64::from(followed);
+        followed
+    }
+
+    /// Empties lane `slot` (node 0 at both ends, no length) and keeps it as a hole.
+    fn empty(&mut self, slot: u32) {
+        let (batch, lane) = (slot as usize / LANES, slot as usize % LANES);
+        self.edge[batch][lane] = u32::MAX;
+        self.ends_of[batch][0][lane] = 0;
+        self.ends_of[batch][1][lane] = 0;
+        self.rest[batch][lane] = 0.0;
+        if self.uniform.is_none() {
+            self.stiffness_damping[batch][0][lane] = 0.0;
+            self.stiffness_damping[batch][1][lane] = 0.0;
+        }
+        self.holes.push(slot);
+    }
+
+    /// Whether batch `batch` holds neither `a` nor `b` in its occupied lanes.
+    fn takes(&self, batch: usize, a: u32, b: u32) -> bool {
+        let [ends_a, ends_b] = &self.ends_of[batch];
+        (0..LANES).all(|lane| {
+            self.edge[batch][lane] == u32::MAX
+                || (ends_a[lane] != a
+                    && ends_a[lane] != b
+                    && ends_b[lane] != a
+                    && ends_b[lane] != b)
+        })
     }
 
     /// Takes the nodes of `batch` out of open slot `slot`.
@@ -276,7 +512,11 @@ impl ForceKernel {
     pub fn refresh(&mut self, body: &Body) {
         let stamp = (body.topology_version, body.node_count(), body.edges.len());
         if self.built_for != Some(stamp) {
-            self.batches.rebuild(&body.edges, body.node_count());
+            let patched =
+                self.built_for.is_some() && self.batches.patch(&body.edges, body.node_count());
+            if !patched {
+                self.batches.rebuild(&body.edges, body.node_count());
+            }
             self.built_for = Some(stamp);
         }
     }
