@@ -3,8 +3,9 @@
 //! then one pass over the nodes that adds gravity, air, the links and their reactions, measures the
 //! body's energy and (for an explicit body) integrates the free nodes.
 //!
-//! The batches are a greedy colouring of the edges, rebuilt when the body's topology changes, in
-//! scratch reserved for the body's limits (no allocation on the tick). The edge forces accumulate per
+//! The batches are a greedy colouring of the edges, patched where the edges changed when the body's
+//! topology changes (coloured again only after a transection or when the patches leave too many
+//! empty lanes), in scratch reserved for the body's limits (no allocation on the tick). The edge forces accumulate per
 //! component (structure of arrays, `fx`, `fy`, `fz`), batch after batch in a fixed order; within a
 //! batch the lanes touch different nodes. Every lane does the same IEEE operations (add, subtract,
 //! multiply, divide, square root, no fused multiply-add) in the same order on every path — AVX on an
