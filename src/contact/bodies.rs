@@ -699,11 +699,11 @@ pub fn respond_to_body_contacts(
     for c in scratch.contacts.iter_mut() {
         let (a, b) = (c.a[0].body, c.b[0].body);
         c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
-        c.compliance = c
-            .nodes()
-            .map(|(r, w)| w * w * inverse_mass_of(bodies, r))
+        let nodes = ContactNodes::of(bodies, c);
+        c.compliance = (0..nodes.count)
+            .map(|i| nodes.weights[i] * nodes.weights[i] * nodes.inverse_masses[i])
             .sum::<f64>();
-        scratch.contact_nodes.push(ContactNodes::of(bodies, c));
+        scratch.contact_nodes.push(nodes);
     }
     counters.contacts = scratch.contacts.len() as u32;
     // Two solves with the same contacts: the displacements over the tick (where the nodes end: no
