@@ -1046,16 +1046,30 @@ impl World {
             }
         }
         // Cuts along the blades' sweeps, then coarsening, before the guard looks at the bodies.
-        for (((body, solver), refinement), cutter) in self
+        let blades = self
+            .tools
+            .iter()
+            .any(|t| matches!(t.shape, ToolShape::Blade { .. }) && t.part_count > 0);
+        for ((((body, solver), refinement), cutter), guard) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
             .zip(self.cutters.iter_mut())
+            .zip(self.guards.iter_mut())
         {
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
             {
+                // The guard's pass over the nodes, taken now with the box of their positions: a
+                // blade whose sweep misses the box is away, at no cost (the guard reads the pass).
+                clock.enter(Stage::Guard);
+                let node_bounds = if blades && cutter.blades {
+                    guard.measure(body, true);
+                    guard.node_bounds()
+                } else {
+                    None
+                };
                 clock.enter(Stage::Cut);
                 let mut changed = false;
                 for (tool_index, tool) in self.tools.iter().enumerate() {
@@ -1070,7 +1084,13 @@ impl World {
                         continue;
                     }
                     let (start, end) = (tool.parts_start[0], tool.parts_end[0]);
-                    let step = cutter.cut(body, tool_index, [start.a, start.b], [end.a, end.b]);
+                    let step = cutter.cut_within(
+                        body,
+                        tool_index,
+                        [start.a, start.b],
+                        [end.a, end.b],
+                        node_bounds.as_ref(),
+                    );
                     if cutter.settings.resistance > 0.0 {
                         if step.nodes_near == 0 {
                             cutter.away[tool_index] += 1;

@@ -855,3 +855,117 @@ script = [
         "only {cut_sessions} of {sessions} sessions cut"
     );
 }
+
+/// A blade whose swept box misses the box of the body's nodes is away: [`Cutter::cut_within`] ends
+/// the step there, without a pass over the nodes, and must answer exactly as the pass does. Blades
+/// are set down at random just inside, on and beyond the tolerance round the body's box, on a
+/// deformed, moving sphere; each step is made twice, with and without the box, on copies of the
+/// body and cutter: the same step, the same mesh and state to the bit. The world takes the box
+/// from the guard's pass (`Guard::node_bounds`); with a blade above the organ the incision scene's
+/// cutter then makes no pass at all.
+#[test]
+fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
+    use palpa::collision::tool::Aabb;
+    let mut rng = Rng(common::env_or("PALPA_SEED", 13));
+    let mesh = icosphere(0.03, 3);
+    let mut body = cutting_body(&mesh, 1024, true);
+    // Deformed: every node off its rest place by up to 2 mm.
+    for x in &mut body.surface.position_in_world {
+        *x += Vec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 4e-3;
+    }
+    // Two bodies and cutters made alike (not cloned: a clone's scratch lists lose the room they
+    // were given), one cut with the box, one without.
+    let mut body_a = cutting_body(&mesh, 1024, true);
+    body_a
+        .surface
+        .position_in_world
+        .copy_from_slice(&body.surface.position_in_world);
+    // With a resistance, a step counts the nodes in the blade's box (grown by the tolerance):
+    // a blade within the tolerance of the nodes' box must find them.
+    let settings = CuttingSettings {
+        resistance: 1.0,
+        ..CuttingSettings::default()
+    };
+    let mut cutter = Cutter::new(&body, settings, 1);
+    let mut cutter_a = Cutter::new(&body_a, settings, 1);
+    let (mut away, mut near, mut changed, mut counted) = (0, 0, 0, 0);
+    for stroke in 0..600 {
+        let mut bounds = Aabb::empty();
+        for x in &body.surface.position_in_world {
+            bounds.include(x);
+        }
+        // A point on a face of the box, pushed out (or in) by up to 1.5 longest edges.
+        let axis = rng.below(3);
+        let side = rng.below(2);
+        let mut p = bounds.min
+            + (bounds.max - bounds.min).component_mul(&Vec3::new(
+                rng.unit(),
+                rng.unit(),
+                rng.unit(),
+            ));
+        let out = (rng.unit() * 1.6 - 0.1) * 0.01;
+        p[axis] = if side == 0 {
+            bounds.min[axis] - out
+        } else {
+            bounds.max[axis] + out
+        };
+        // The blade's segment reaches from there towards the body's centre, up to 1.2 cm; it moves
+        // across itself.
+        let inward = (body.surface_centre_of_mass() - p).normalize();
+        let dir = inward
+            .cross(&Vec3::new(
+                rng.unit() - 0.5,
+                rng.unit() - 0.5,
+                rng.unit() - 0.5,
+            ))
+            .normalize();
+        let start = [p, p + inward * 0.012 * rng.unit()];
+        let end = [start[0] + dir * 0.002, start[1] + dir * 0.002];
+        let with_pass = cutter_a.cut(&mut body_a, 0, start, end);
+        let passes = cutter.counters.passes;
+        let with_box = cutter.cut_within(&mut body, 0, start, end, Some(&bounds));
+        assert_eq!(with_box, with_pass, "stroke {stroke}");
+        assert_eq!(
+            body.surface.triangles, body_a.surface.triangles,
+            "stroke {stroke}"
+        );
+        assert_eq!(
+            body.surface.position_in_world,
+            body_a.surface.position_in_world
+        );
+        assert_eq!(body.surface.mass, body_a.surface.mass, "stroke {stroke}");
+        assert_eq!(body.edges.a, body_a.edges.a, "stroke {stroke}");
+        if cutter.counters.passes == passes {
+            away += 1;
+        } else {
+            near += 1;
+        }
+        changed += usize::from(with_box.changed);
+        counted += usize::from(with_box.nodes_near > 0);
+    }
+    println!(
+        "600 blades round the box: {away} away (no pass), {near} near ({counted} with nodes in \
+         the blade's box), {changed} cut"
+    );
+    assert!(
+        away > 100 && near > 100 && changed > 10 && counted > 10,
+        "{away} / {near} / {counted} / {changed}"
+    );
+
+    // In the world: the blade of the incision scene above the organ makes no pass over its nodes.
+    let scene = std::fs::read_to_string(format!(
+        "{}/scenes/incision.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let mut world = World::from_scene(&common::scene(&scene));
+    for _ in 0..200 {
+        world.step();
+    }
+    let c = world.cutters.iter().flatten().next().unwrap().counters;
+    println!(
+        "incision scene, first 200 ticks: {} away, {} passes",
+        c.away_ticks, c.passes
+    );
+    assert!(c.away_ticks > 0, "{c:?}");
+}

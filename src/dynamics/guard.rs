@@ -11,6 +11,7 @@
 
 use crate::Vec3;
 use crate::body::{Body, RigidComponent};
+use crate::collision::tool::Aabb;
 
 /// Why the guard acted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,6 +57,92 @@ pub struct Guard {
     budget: f64,
     gravity: Vec3,
     last_good_rigid: RigidComponent,
+    /// The pass over the nodes taken by [`Guard::measure`] since the last check, if any.
+    measured: Option<Measure>,
+}
+
+/// What one pass over a body's nodes found: the largest squared speed and node–homologue distance,
+/// whether any value is not finite, and (when asked) the box of the nodes' positions.
+#[derive(Clone, Copy, Debug)]
+pub struct Measure {
+    speed2: f64,
+    stretch2: f64,
+    bad: bool,
+    bounds: Option<Aabb>,
+}
+
+/// The box of `positions` (none of them NaN). Four nodes at a time, each of their twelve
+/// coordinates with a least and greatest value of its own, folded by axis at the end: plain
+/// comparisons on whole vectors, and the same box in any order.
+fn position_bounds(positions: &[Vec3]) -> Aabb {
+    let mut lo = [f64::INFINITY; 12];
+    let mut hi = [f64::NEG_INFINITY; 12];
+    let mut blocks = positions.chunks_exact(4);
+    for block in &mut blocks {
+        let mut c = [0.0; 12];
+        for (l, p) in block.iter().enumerate() {
+            c[3 * l] = p.x;
+            c[3 * l + 1] = p.y;
+            c[3 * l + 2] = p.z;
+        }
+        for j in 0..12 {
+            lo[j] = if c[j] < lo[j] { c[j] } else { lo[j] };
+            hi[j] = if c[j] > hi[j] { c[j] } else { hi[j] };
+        }
+    }
+    let mut aabb = Aabb::empty();
+    for p in blocks.remainder() {
+        aabb.include(p);
+    }
+    for l in 0..4 {
+        aabb.min = aabb
+            .min
+            .inf(&Vec3::new(lo[3 * l], lo[3 * l + 1], lo[3 * l + 2]));
+        aabb.max = aabb
+            .max
+            .sup(&Vec3::new(hi[3 * l], hi[3 * l + 1], hi[3 * l + 2]));
+    }
+    aabb
+}
+
+impl Measure {
+    /// One pass over the nodes of `body`; with `bounds`, the box of their positions as well.
+    fn of(body: &Body, bounds: bool) -> Self {
+        if bounds {
+            Self::pass::<true>(body)
+        } else {
+            Self::pass::<false>(body)
+        }
+    }
+
+    fn pass<const BOUNDS: bool>(body: &Body) -> Self {
+        // No early exit: the largest squared speed and stretch, and whether any node's is not
+        // finite (NaN or infinite). Plain comparisons, not `f64::max` (whose NaN rule keeps the
+        // loop scalar), and an or of flags, not a sum: the same answer in any order.
+        let s = &body.surface;
+        let (mut speed2, mut stretch2, mut bad) = (0.0f64, 0.0f64, false);
+        for ((v, x), h) in s
+            .velocity_in_world
+            .iter()
+            .zip(&s.position_in_world)
+            .zip(&s.homologue_in_world)
+        {
+            let v2 = v.norm_squared();
+            let s2 = (x - h).norm_squared();
+            speed2 = if v2 > speed2 { v2 } else { speed2 };
+            stretch2 = if s2 > stretch2 { s2 } else { stretch2 };
+            bad |= !(v2 + s2).is_finite();
+        }
+        // A box only for finite positions (a NaN compares false and would shrink it).
+        let bounds = (BOUNDS && !bad && !s.position_in_world.is_empty())
+            .then(|| position_bounds(&s.position_in_world));
+        Self {
+            speed2,
+            stretch2,
+            bad,
+            bounds,
+        }
+    }
 }
 
 /// Total mechanical energy of a body: kinetic, elastic (edges and links) and gravitational (J).
@@ -98,7 +185,24 @@ impl Guard {
             budget: body_energy(body, gravity),
             gravity: *gravity,
             last_good_rigid: body.rigid.clone(),
+            measured: None,
         }
+    }
+
+    /// Takes the guard's pass over the nodes of `body` now, for the next [`Guard::check`], and with
+    /// `bounds` the box of the node positions (see [`Guard::node_bounds`]). The check then reads
+    /// this pass instead of making its own: the world measures after the positions are committed
+    /// and before the cut stage, which reads the box, and the changes in between (cuts, coarsening)
+    /// only add nodes on segments between nodes, or copies of nodes, or remove nodes, so neither
+    /// the speeds, the stretches nor the box grow (nor can a value stop being finite).
+    pub fn measure(&mut self, body: &Body, bounds: bool) {
+        self.measured = Some(Measure::of(body, bounds));
+    }
+
+    /// The box of the node positions the last [`Guard::measure`] found (exact: every node inside,
+    /// the extreme ones on its faces), if it was asked for and every value was finite.
+    pub fn node_bounds(&self) -> Option<Aabb> {
+        self.measured.and_then(|m| m.bounds)
     }
 
     /// Starts watching `body` again after its mesh and rigid component were rebuilt (a transection):
@@ -108,6 +212,7 @@ impl Guard {
         self.size = fresh.size;
         self.budget = fresh.budget;
         self.last_good_rigid = fresh.last_good_rigid;
+        self.measured = None;
     }
 
     /// Adds work done on the body by tools or anything outside the model (J).
@@ -154,24 +259,17 @@ impl Guard {
         }
     }
 
-    fn diagnose(&self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
-        // One pass without early exit: the largest squared speed and stretch, and whether any
-        // node's is not finite (NaN or infinite). Plain comparisons, not `f64::max` (whose NaN rule
-        // keeps the loop scalar), and an or of flags, not a sum: the same answer in any order.
-        let s = &body.surface;
-        let (mut speed2, mut stretch2, mut bad) = (0.0f64, 0.0f64, false);
-        for ((v, x), h) in s
-            .velocity_in_world
-            .iter()
-            .zip(&s.position_in_world)
-            .zip(&s.homologue_in_world)
-        {
-            let v2 = v.norm_squared();
-            let s2 = (x - h).norm_squared();
-            speed2 = if v2 > speed2 { v2 } else { speed2 };
-            stretch2 = if s2 > stretch2 { s2 } else { stretch2 };
-            bad |= !(v2 + s2).is_finite();
-        }
+    fn diagnose(&mut self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
+        // The pass the world took before the cut stage, or one now.
+        let Measure {
+            speed2,
+            stretch2,
+            bad,
+            ..
+        } = self
+            .measured
+            .take()
+            .unwrap_or_else(|| Measure::of(body, false));
         if bad || !body.rigid.is_finite() {
             return Some(GuardCause::NonFinite);
         }

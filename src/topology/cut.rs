@@ -73,6 +73,10 @@ pub struct CutCounters {
     pub caps_refused: u64,
     /// Cap triangles below the quality bound.
     pub cap_quality_misses: u64,
+    /// Blade steps that ended at the box of the nodes (the blade away from the body): no work.
+    pub away_ticks: u64,
+    /// Blade steps that passed over the body's nodes (the blade's box meets the nodes' box).
+    pub passes: u64,
 }
 
 /// Most edges one cut step may cross (a bound on the tick's cost).
@@ -403,6 +407,22 @@ impl Cutter {
         start: [Vec3; 2],
         end: [Vec3; 2],
     ) -> CutStep {
+        self.cut_within(body, tool, start, end, None)
+    }
+
+    /// [`Cutter::cut`], given the box of the body's node positions when it is known (the world
+    /// has it from the divergence guard's pass, [`crate::dynamics::guard::Guard::node_bounds`]): a
+    /// blade whose swept box misses it is away from the body, and the step ends at no cost at all
+    /// instead of a pass over the nodes — the same answer, since every node then lies beyond one
+    /// side of the blade's box. `node_bounds` must hold every node of `body`.
+    pub fn cut_within(
+        &mut self,
+        body: &mut Body,
+        tool: usize,
+        start: [Vec3; 2],
+        end: [Vec3; 2],
+        node_bounds: Option<&Aabb>,
+    ) -> CutStep {
         let mut step = CutStep::default();
         self.new_path_from = self.path_edges.len();
         // A blade that jumped (its segment does not start where the last step left it: a pose
@@ -442,6 +462,13 @@ impl Cutter {
             bounds.include(p);
         }
         bounds.inflate(self.tolerance(longest));
+        // The blade's box misses the box of the nodes: every node lies beyond one of its sides, as
+        // the pass below would find (none inside, a side they all share), so the step stops here.
+        if node_bounds.is_some_and(|b| !b.overlaps(&bounds)) {
+            self.counters.away_ticks += 1;
+            return step;
+        }
+        self.counters.passes += 1;
         let x = &body.surface.position_in_world;
         // One pass over the nodes: each node's side of the blade's box, the sides they all share
         // and how many are in it. A blade away from the body stops here, at the cost of that pass
