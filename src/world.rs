@@ -30,6 +30,7 @@ use crate::scene::{Scene, WorldParams};
 use crate::tool::ToolShape;
 use crate::tool::{Feedback, Tool};
 use crate::topology::Cutter;
+use crate::topology::cut::NodeExtent;
 use crate::topology::refine::Refinement;
 
 /// Scales a tool's feedback force down to its `max_force`, flagging it.
@@ -1050,13 +1051,14 @@ impl World {
             .tools
             .iter()
             .any(|t| matches!(t.shape, ToolShape::Blade { .. }) && t.part_count > 0);
-        for ((((body, solver), refinement), cutter), guard) in self
+        for (((((body, solver), refinement), cutter), guard), kernel) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
             .zip(self.refinements.iter_mut())
             .zip(self.cutters.iter_mut())
             .zip(self.guards.iter_mut())
+            .zip(&self.kernels)
         {
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
@@ -1064,9 +1066,18 @@ impl World {
                 // The guard's pass over the nodes, taken now with the box of their positions: a
                 // blade whose sweep misses the box is away, at no cost (the guard reads the pass).
                 clock.enter(Stage::Guard);
-                let node_bounds = if blades && cutter.blades {
+                let extent = if blades && cutter.blades {
                     guard.measure(body, true);
-                    guard.node_bounds()
+                    // Every node within the guard's largest stretch of its homologue as the force
+                    // stage placed it (grown for the rounding of that placement).
+                    guard.node_bounds().map(|bounds| NodeExtent {
+                        bounds,
+                        frame: kernel.homologue_frame.zip(guard.node_reach()).map(
+                            |((rotation, origin), reach)| {
+                                (rotation, origin, reach * (1.0 + 1e-12) + 1e-12)
+                            },
+                        ),
+                    })
                 } else {
                     None
                 };
@@ -1089,7 +1100,7 @@ impl World {
                         tool_index,
                         [start.a, start.b],
                         [end.a, end.b],
-                        node_bounds.as_ref(),
+                        extent.as_ref(),
                     );
                     if cutter.settings.resistance > 0.0 {
                         if step.nodes_near == 0 {

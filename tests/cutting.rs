@@ -857,21 +857,25 @@ script = [
 }
 
 /// A blade whose swept box misses the box of the body's nodes is away: [`Cutter::cut_within`] ends
-/// the step there, without a pass over the nodes, and must answer exactly as the pass does. Blades
+/// the step there, without a pass over the nodes; near the body it looks only at what the rest-frame
+/// index lists near the blade. Both must answer exactly as passes over the whole mesh do. Blades
 /// are set down at random just inside, on and beyond the tolerance round the body's box, on a
-/// deformed, moving sphere; each step is made twice, with and without the box, on copies of the
-/// body and cutter: the same step, the same mesh and state to the bit. The world takes the box
-/// from the guard's pass (`Guard::node_bounds`); with a blade above the organ the incision scene's
-/// cutter then makes no pass at all.
+/// deformed, moving sphere; each step is made twice, with the node extent and the index and with
+/// neither, on two bodies and cutters made alike: the same step, the same mesh and state to the
+/// bit. The world takes the extent from the guard's pass (`Guard::node_bounds`, `node_reach`); the
+/// incision scene's cutter then makes no pass at all.
 #[test]
 fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
     use palpa::collision::tool::Aabb;
     let mut rng = Rng(common::env_or("PALPA_SEED", 13));
     let mesh = icosphere(0.03, 3);
     let mut body = cutting_body(&mesh, 1024, true);
-    // Deformed: every node off its rest place by up to 2 mm.
+    // Deformed: every node off its rest place by about a centimetre (the whole surface pulled
+    // aside of its rigid component, 2 mm of noise on top), so that the rest places alone would
+    // not tell which springs are near the blade: the reach must.
     for x in &mut body.surface.position_in_world {
-        *x += Vec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 4e-3;
+        *x += Vec3::new(0.008, -0.005, 0.004)
+            + Vec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 4e-3;
     }
     // Two bodies and cutters made alike (not cloned: a clone's scratch lists lose the room they
     // were given), one cut with the box, one without.
@@ -887,7 +891,9 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
         ..CuttingSettings::default()
     };
     let mut cutter = Cutter::new(&body, settings, 1);
+    // The reference passes over the whole mesh: no rest-frame index.
     let mut cutter_a = Cutter::new(&body_a, settings, 1);
+    cutter_a.index = None;
     let (mut away, mut near, mut changed, mut counted) = (0, 0, 0, 0);
     for stroke in 0..600 {
         let mut bounds = Aabb::empty();
@@ -922,8 +928,10 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
         let start = [p, p + inward * 0.012 * rng.unit()];
         let end = [start[0] + dir * 0.002, start[1] + dir * 0.002];
         let with_pass = cutter_a.cut(&mut body_a, 0, start, end);
-        let passes = cutter.counters.passes;
-        let with_box = cutter.cut_within(&mut body, 0, start, end, Some(&bounds));
+        let (passes, local) = (cutter.counters.passes, cutter.counters.local_steps);
+        let extent = Cutter::measure_extent(&body);
+        assert_eq!(extent.bounds, bounds);
+        let with_box = cutter.cut_within(&mut body, 0, start, end, Some(&extent));
         assert_eq!(with_box, with_pass, "stroke {stroke}");
         assert_eq!(
             body.surface.triangles, body_a.surface.triangles,
@@ -935,7 +943,11 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
         );
         assert_eq!(body.surface.mass, body_a.surface.mass, "stroke {stroke}");
         assert_eq!(body.edges.a, body_a.edges.a, "stroke {stroke}");
-        if cutter.counters.passes == passes {
+        assert_eq!(
+            cutter.counters.passes, passes,
+            "stroke {stroke}: a pass was made"
+        );
+        if cutter.counters.local_steps == local {
             away += 1;
         } else {
             near += 1;
@@ -945,7 +957,8 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
     }
     println!(
         "600 blades round the box: {away} away (no pass), {near} near ({counted} with nodes in \
-         the blade's box), {changed} cut"
+         the blade's box), {changed} cut; index built {} time(s)",
+        cutter.index.as_ref().map_or(0, |i| i.builds)
     );
     assert!(
         away > 100 && near > 100 && changed > 10 && counted > 10,
@@ -968,4 +981,21 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
         c.away_ticks, c.passes
     );
     assert!(c.away_ticks > 0, "{c:?}");
+    // The whole incision: every step near the organ looks at the springs the rest-frame index
+    // lists near the blade, none passes over the mesh, and the index, told of every change the
+    // cut makes, is built once.
+    for _ in 200..2000 {
+        world.step();
+    }
+    let cutter = world.cutters.iter().flatten().next().unwrap();
+    let c = cutter.counters;
+    let builds = cutter.index.as_ref().map_or(0, |i| i.builds);
+    println!(
+        "incision scene, 2 s: {} away, {} near (index), {} passes, {} cut steps, index built \
+         {builds} time(s)",
+        c.away_ticks, c.local_steps, c.passes, c.steps
+    );
+    assert!(c.local_steps > 500 && c.steps >= 5, "{c:?}");
+    assert_eq!(c.passes, 0, "{c:?}");
+    assert_eq!(builds, 1);
 }

@@ -205,6 +205,13 @@ impl Guard {
         self.measured.and_then(|m| m.bounds)
     }
 
+    /// The largest distance of a node from its homologue's world place (`homologue_in_world`, as
+    /// the force stage placed it this tick) that the last [`Guard::measure`] found (m), if every
+    /// value was finite.
+    pub fn node_reach(&self) -> Option<f64> {
+        self.measured.filter(|m| !m.bad).map(|m| m.stretch2.sqrt())
+    }
+
     /// Starts watching `body` again after its mesh and rigid component were rebuilt (a transection):
     /// size, energy budget and last good rigid state from the body now; events kept.
     pub fn rebase(&mut self, body: &Body) {

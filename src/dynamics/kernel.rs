@@ -469,6 +469,9 @@ pub struct ForceKernel {
     pub energy: f64,
     /// Elastic energy of the edge springs at the start of the last step (J).
     pub edge_energy: f64,
+    /// The placement of the body frame the last node pass put the homologues with (rotation,
+    /// origin): `homologue_in_world = rotation · homologue_in_body + origin`.
+    pub homologue_frame: Option<(nalgebra::Matrix3<f64>, Vec3)>,
 }
 
 impl ForceKernel {
@@ -486,6 +489,7 @@ impl ForceKernel {
             simd: true,
             energy: 0.0,
             edge_energy: 0.0,
+            homologue_frame: None,
         }
     }
 
@@ -566,6 +570,7 @@ impl ForceKernel {
         let rotation = rigid.world_from_body.to_rotation_matrix();
         let m = rotation.matrix();
         let omega = rigid.angular_velocity_in_world();
+        self.homologue_frame = Some((*m, rigid.position_in_world));
         let frame = Frame {
             rotation: [
                 [m[(0, 0)], m[(0, 1)], m[(0, 2)]],

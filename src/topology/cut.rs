@@ -36,6 +36,7 @@
 //! nothing, and refuses (and counts) a step the body's reserved room cannot take.
 
 use super::refine::min_angle_deg;
+use super::rest_index::RestIndex;
 use super::transect::Transector;
 use super::{find_edge, mass_fractions};
 use crate::Vec3;
@@ -73,6 +74,8 @@ pub struct CutCounters {
     pub caps_refused: u64,
     /// Cap triangles below the quality bound.
     pub cap_quality_misses: u64,
+    /// Blade steps that looked only at the springs near the blade (the rest-frame index).
+    pub local_steps: u64,
     /// Blade steps that ended at the box of the nodes (the blade away from the body): no work.
     pub away_ticks: u64,
     /// Blade steps that passed over the body's nodes (the blade's box meets the nodes' box).
@@ -107,6 +110,8 @@ const MIN_SPLIT_FRACTION: f64 = 0.05;
 const MIN_COPY_SHARE: f64 = 0.1;
 /// Most tips kept per blade.
 const MAX_TIPS: usize = 8;
+/// Most (node, triangle) entries of the fans round a step's path.
+const FAN_ROOM: usize = 16 * MAX_CROSSINGS;
 
 #[derive(Clone, Copy, Debug)]
 enum Choice {
@@ -188,6 +193,17 @@ pub struct CutStep {
     pub nodes_near: u32,
 }
 
+/// What the world knows of a body's nodes at the cut stage (see [`Cutter::cut_within`]).
+#[derive(Clone, Copy, Debug)]
+pub struct NodeExtent {
+    /// The box of the node positions (world frame): every node inside it.
+    pub bounds: Aabb,
+    /// A placement of the body frame (rotation and origin: a rest place `h` sits at
+    /// `rotation · h + origin` in the world) and a distance within which every node lies of its rest
+    /// place so placed (m); from the tick's homologues and the guard's pass.
+    pub frame: Option<(nalgebra::Matrix3<f64>, Vec3, f64)>,
+}
+
 /// The cutting state of one body: settings, counters and fixed scratch.
 #[derive(Clone, Debug)]
 pub struct Cutter {
@@ -247,6 +263,13 @@ pub struct Cutter {
     pub blades: bool,
     /// Tearing, when on (it opens the surface with this cutter).
     pub tearer: Option<super::tear::Tearer>,
+    /// Where the body's triangles and springs are in its rest frame (none for a body whose rest
+    /// shape flows: plasticity): a step looks there instead of passing over the mesh.
+    pub index: Option<RestIndex>,
+    /// Nodes a step met (side codes), marked with the step's stamp.
+    side_stamp: Vec<u32>,
+    /// Scratch: the nodes of the path, each once.
+    path_nodes: Vec<u32>,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -326,7 +349,7 @@ impl Cutter {
             path_edges: Vec::with_capacity(8 * MAX_CROSSINGS),
             new_path_from: 0,
             pending: Vec::with_capacity(4 * MAX_CROSSINGS),
-            fan: Vec::with_capacity(16 * MAX_CROSSINGS),
+            fan: Vec::with_capacity(FAN_ROOM),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
             created: Vec::with_capacity(MAX_CREATED),
             transector: Transector::with_capacity(capacity, body.mesh_capacity().1),
@@ -336,6 +359,49 @@ impl Cutter {
                 .params
                 .tearing
                 .map(|t| super::tear::Tearer::new(body, t)),
+            index: body.params.plasticity.is_none().then(|| {
+                let (_, triangles) = body.mesh_capacity();
+                let edges = if body.limits.edges == usize::MAX {
+                    body.edges.len() + 3 * (triangles - body.surface.triangles.len().min(triangles))
+                } else {
+                    body.limits.edges
+                };
+                RestIndex::with_capacity(triangles, edges)
+            }),
+            side_stamp: vec![0; capacity],
+            path_nodes: Vec::with_capacity(16 * MAX_CROSSINGS),
+        }
+    }
+
+    /// Brings the rest-frame index up to the body (built again after a change the cutter did not
+    /// make). Whether it can be used.
+    fn sync_index(&mut self, body: &Body) -> bool {
+        let cell = self.longest;
+        self.index.as_mut().is_some_and(|i| i.sync(body, cell))
+    }
+
+    /// The index, when it describes the body as it is.
+    fn index_for(&mut self, body: &Body) -> Option<&mut RestIndex> {
+        self.index.as_mut().filter(|i| i.is_valid_for(body))
+    }
+
+    /// The spring between `a` and `b` (the first one a pass over the springs would meet).
+    fn edge_between(&mut self, body: &Body, a: u32, b: u32) -> Option<usize> {
+        match self.index_for(body) {
+            Some(index) => index.find_edge(body, a, b),
+            None => find_edge(body, a, b),
+        }
+    }
+
+    fn triangle_changed(&mut self, body: &Body, t: u32) {
+        if let Some(index) = self.index.as_mut() {
+            index.triangle_changed(body, t);
+        }
+    }
+
+    fn edge_changed(&mut self, body: &Body, k: u32) {
+        if let Some(index) = self.index.as_mut() {
+            index.edge_changed(body, k);
         }
     }
 
@@ -370,6 +436,9 @@ impl Cutter {
         for tips in &mut self.tips {
             tips.clear();
         }
+        if let Some(index) = self.index.as_mut() {
+            index.invalidate();
+        }
         self.pending.clear();
         self.transector.clear_marks();
     }
@@ -389,6 +458,7 @@ impl Cutter {
             self.node_stamp.iter_mut().for_each(|s| *s = 0);
             self.cut_stamp.iter_mut().for_each(|s| *s = 0);
             self.near_stamp.iter_mut().for_each(|s| *s = 0);
+            self.side_stamp.iter_mut().for_each(|s| *s = 0);
             self.stamp = 1;
         }
         self.stamp
@@ -410,19 +480,44 @@ impl Cutter {
         self.cut_within(body, tool, start, end, None)
     }
 
-    /// [`Cutter::cut`], given the box of the body's node positions when it is known (the world
-    /// has it from the divergence guard's pass, [`crate::dynamics::guard::Guard::node_bounds`]): a
-    /// blade whose swept box misses it is away from the body, and the step ends at no cost at all
-    /// instead of a pass over the nodes — the same answer, since every node then lies beyond one
-    /// side of the blade's box. `node_bounds` must hold every node of `body`.
+    /// [`NodeExtent`] of `body` measured now by a pass over its nodes (its rigid component's
+    /// placement; the reach slightly grown for rounding): what the world hands [`Cutter::cut_within`],
+    /// for callers that step a body themselves.
+    pub fn measure_extent(body: &Body) -> NodeExtent {
+        let r = &body.rigid;
+        let rotation = *r.world_from_body.to_rotation_matrix().matrix();
+        let origin = r.position_in_world;
+        let s = &body.surface;
+        let mut bounds = Aabb::empty();
+        let mut reach = 0.0f64;
+        for (x, h) in s.position_in_world.iter().zip(&s.homologue_in_body) {
+            bounds.include(x);
+            reach = reach.max((x - (rotation * h + origin)).norm());
+        }
+        NodeExtent {
+            bounds,
+            frame: Some((rotation, origin, reach * (1.0 + 1e-12) + 1e-12)),
+        }
+    }
+
+    /// [`Cutter::cut`], given what is known of the body's nodes (the world has it from the
+    /// divergence guard's pass, [`crate::dynamics::guard::Guard::node_bounds`], and the tick's
+    /// homologues): a blade whose swept box misses the box of the nodes is away from the body, and
+    /// the step ends at no cost at all instead of a pass over the nodes — the same answer, since
+    /// every node then lies beyond one side of the blade's box. With a frame and reach, the springs
+    /// the blade may cross are taken from the rest-frame index near the blade's box carried into
+    /// the body frame and grown by the reach, instead of from a pass over every node and spring —
+    /// again the same answer: a node within the blade's box lies within the reach of its rest place.
+    /// `extent` must hold every node of `body`.
     pub fn cut_within(
         &mut self,
         body: &mut Body,
         tool: usize,
         start: [Vec3; 2],
         end: [Vec3; 2],
-        node_bounds: Option<&Aabb>,
+        extent: Option<&NodeExtent>,
     ) -> CutStep {
+        let node_bounds = extent.map(|e| &e.bounds);
         let mut step = CutStep::default();
         self.new_path_from = self.path_edges.len();
         // A blade that jumped (its segment does not start where the last step left it: a pose
@@ -468,17 +563,72 @@ impl Cutter {
             self.counters.away_ticks += 1;
             return step;
         }
-        self.counters.passes += 1;
+        let indexed = self.sync_index(body);
+        let frame = extent.and_then(|e| e.frame).filter(|_| indexed);
         let x = &body.surface.position_in_world;
-        // One pass over the nodes: each node's side of the blade's box, the sides they all share
-        // and how many are in it. A blade away from the body stops here, at the cost of that pass
-        // (the edges, three times as many, are not looked at).
+        // The springs to look at: near the blade in the rest frame, or all of them.
+        let local = if let Some((rotation, origin, reach)) = frame {
+            let mut rest = Aabb::empty();
+            for corner in 0..8 {
+                let c = Vec3::new(
+                    if corner & 1 == 0 {
+                        bounds.min.x
+                    } else {
+                        bounds.max.x
+                    },
+                    if corner & 2 == 0 {
+                        bounds.min.y
+                    } else {
+                        bounds.max.y
+                    },
+                    if corner & 4 == 0 {
+                        bounds.min.z
+                    } else {
+                        bounds.max.z
+                    },
+                );
+                rest.include(&(rotation.transpose() * (c - origin)));
+            }
+            rest.inflate(reach + 1e-9 * (1.0 + rest.max.abs().max() + rest.min.abs().max()));
+            if let Some(index) = self.index.as_mut() {
+                let mark = index.begin();
+                index.collect_edges(body, &rest, mark, |_, _, _| true);
+                index.finish();
+            }
+            self.counters.local_steps += 1;
+            true
+        } else {
+            self.counters.passes += 1;
+            false
+        };
+        // Each node's side of the blade's box, the sides they all share and how many are in it:
+        // over the ends of the springs near the blade, or over every node. A blade away from the
+        // body stops here (the springs, three times as many as the nodes, are not looked at).
         let mut shared_sides = u8::MAX;
         let mut inside = 0u32;
-        for (side, p) in self.node_side[..n].iter_mut().zip(&x[..n]) {
-            *side = bounds.outcode(p, p);
-            shared_sides &= *side;
-            inside += u32::from(*side == 0);
+        if local {
+            let found = &self.index.as_ref().expect("indexed").found;
+            let e = &body.edges;
+            for &k in found {
+                for v in [e.a[k as usize], e.b[k as usize]] {
+                    let v = v as usize;
+                    if self.side_stamp[v] != stamp {
+                        self.side_stamp[v] = stamp;
+                        let side = bounds.outcode(&x[v], &x[v]);
+                        self.node_side[v] = side;
+                        inside += u32::from(side == 0);
+                    }
+                }
+            }
+            // Every node with a side of 0 is an end of a spring found (no node is without one).
+            // Whether they all share a side is not known: the crossings below are looked for
+            // among the springs found, which is what a shared side would have spared.
+        } else {
+            for (side, p) in self.node_side[..n].iter_mut().zip(&x[..n]) {
+                *side = bounds.outcode(p, p);
+                shared_sides &= *side;
+                inside += u32::from(*side == 0);
+            }
         }
         // Only a blade that pressed through a resistance asks whether it is still near the body.
         if self.settings.resistance > 0.0 {
@@ -489,14 +639,24 @@ impl Cutter {
         }
         // Every node on one side of the box: no edge crosses the sweep, and no crack tip (a node)
         // is within the tolerance of it, so the step has nothing to do.
-        if shared_sides != 0 {
+        if !local && shared_sides != 0 {
             return step;
         }
         // 1. Crossings.
         self.crossings.clear();
         self.split_rest.clear();
         let edges = &body.edges;
-        for k in 0..edges.len() {
+        let count = if local {
+            self.index.as_ref().expect("indexed").found.len()
+        } else {
+            edges.len()
+        };
+        for i in 0..count {
+            let k = if local {
+                self.index.as_ref().expect("indexed").found[i] as usize
+            } else {
+                i
+            };
             let (a, b) = (edges.a[k], edges.b[k]);
             // The same as `bounds.outcode(xa, xb) != 0`, from the codes of the pass above.
             if self.node_side[a as usize] & self.node_side[b as usize] != 0 {
@@ -657,6 +817,9 @@ impl Cutter {
         step.changed = step.splits > 0 || copies > 0 || opened > 0;
         if step.changed {
             body.topology_version += 1;
+            if let Some(index) = self.index.as_mut() {
+                index.caught_up(body);
+            }
             body.refresh_diagonals();
             self.counters.steps += 1;
             self.counters.splits += step.splits as u64;
@@ -684,6 +847,7 @@ impl Cutter {
             self.counters.refused += 1;
             return step;
         }
+        self.sync_index(body);
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
         self.new_path_from = self.pending.len();
@@ -809,6 +973,33 @@ impl Cutter {
             }
         }
         self.candidates.clear();
+        let n = body.node_count();
+        if let Some(index) = self.index.as_mut().filter(|i| i.is_valid_for(body)) {
+            // The triangles round each marked node, from the index, in index order.
+            let h = &body.surface.homologue_in_body;
+            let near = &self.near_stamp;
+            let mark = index.begin();
+            let marked = |v: u32| near[v as usize] == stamp;
+            for c in &self.crossings {
+                for v in [c.a, c.b] {
+                    let at = RestIndex::point(&h[v as usize]);
+                    index.collect_triangles(body, &at, mark, |_, t| t.iter().any(|&w| marked(w)));
+                }
+            }
+            if let Some(tips) = self.tips.get(tool) {
+                for &v in &tips.nodes[..tips.len] {
+                    if (v as usize) < n {
+                        let at = RestIndex::point(&h[v as usize]);
+                        index.collect_triangles(body, &at, mark, |_, t| {
+                            t.iter().any(|&w| marked(w))
+                        });
+                    }
+                }
+            }
+            index.finish();
+            self.candidates.extend_from_slice(&index.found);
+            return;
+        }
         for (index, t) in body.surface.triangles.iter().enumerate() {
             if t.iter().any(|&v| self.near_stamp[v as usize] == stamp) {
                 self.candidates.push(index as u32);
@@ -1176,7 +1367,7 @@ impl Cutter {
             if self.crossing_on(u, v).is_some() || self.crossings.len() == MAX_CROSSINGS {
                 continue;
             }
-            let Some(edge) = find_edge(body, u, v) else {
+            let Some(edge) = self.edge_between(body, u, v) else {
                 continue;
             };
             self.crossings.push(Crossing {
@@ -1251,6 +1442,7 @@ impl Cutter {
         e.damping[k] = damping / t_near;
         let t_far = 1.0 - t_near;
         e.push(p, far, rest * t_far, stiffness / t_far, damping / t_far);
+        self.edge_changed(body, (body.edges.len() - 1) as u32);
         // A boundary edge split gives two boundary edges.
         if self.edge_is_boundary(a, b) {
             body.boundary_edges += 1;
@@ -1304,10 +1496,17 @@ impl Cutter {
             self.created.push((triangles.len() as u32, floor));
             triangles.push(*child);
         }
+        // A child lies within its parent's rest box: only the new ones are told to the index.
+        let first_new = body.surface.triangles.len() - (count - 1);
+        for t in first_new..body.surface.triangles.len() {
+            self.triangle_changed(body, t as u32);
+        }
         let (k, c) = (body.params.surface_stiffness, body.params.surface_damping);
         for &(u, v) in &inner[..inner_count] {
+            let h = &body.surface.homologue_in_body;
             let rest = (h[u as usize] - h[v as usize]).norm() * (1.0 - prestress);
             body.edges.push(u, v, rest, k, c);
+            self.edge_changed(body, (body.edges.len() - 1) as u32);
         }
     }
 
@@ -1334,19 +1533,27 @@ impl Cutter {
                     if self.path_edges.contains(&(a.min(b), a.max(b))) {
                         continue;
                     }
-                    let triangles = &body.surface.triangles;
-                    let Some(n) = triangles
-                        .iter()
-                        .position(|u| (0..3).any(|j| u[j] == b && u[(j + 1) % 3] == a))
-                    else {
+                    // The triangle across a→b (b→a in it), and whether one already joins c to w.
+                    let across = |u: &[u32; 3]| (0..3).any(|j| u[j] == b && u[(j + 1) % 3] == a);
+                    let found = match self.index.as_mut().filter(|i| i.is_valid_for(body)) {
+                        Some(index) => index.first_triangle_at(body, a, across),
+                        None => body.surface.triangles.iter().position(across),
+                    };
+                    let Some(n) = found else {
                         continue;
                     };
+                    let triangles = &body.surface.triangles;
                     let u = triangles[n];
                     let w = u.iter().copied().find(|&v| v != a && v != b).unwrap_or(a);
-                    if w == a
-                        || w == c
-                        || triangles.iter().any(|u| u.contains(&c) && u.contains(&w))
-                    {
+                    if w == a || w == c {
+                        continue;
+                    }
+                    let joined = |u: &[u32; 3]| u.contains(&c) && u.contains(&w);
+                    let exists = match self.index.as_mut().filter(|i| i.is_valid_for(body)) {
+                        Some(index) => index.first_triangle_at(body, c, joined).is_some(),
+                        None => body.surface.triangles.iter().any(joined),
+                    };
+                    if exists {
                         continue;
                     }
                     let normal = |tri: [u32; 3]| {
@@ -1379,7 +1586,7 @@ impl Cutter {
                     continue;
                 };
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                let Some(edge) = find_edge(body, a, b) else {
+                let Some(edge) = self.edge_between(body, a, b) else {
                     continue;
                 };
                 let h = &body.surface.homologue_in_body;
@@ -1398,6 +1605,9 @@ impl Cutter {
                 let triangles = &mut body.surface.triangles;
                 triangles[index] = [a, w, c];
                 triangles[n] = [w, b, c];
+                self.triangle_changed(body, index as u32);
+                self.triangle_changed(body, n as u32);
+                self.edge_changed(body, edge as u32);
                 if !self.created.iter().any(|&(t, _)| t == n as u32)
                     && self.created.len() < MAX_CREATED
                 {
@@ -1494,12 +1704,40 @@ impl Cutter {
             self.cut_stamp[p as usize] = stamp;
             self.cut_stamp[q as usize] = stamp;
         }
-        // Fans: (node, triangle) for every corner on the path, sorted.
+        // Fans: (node, triangle) for every corner on the path, sorted: from the index round each
+        // node of the path, or from a pass over the triangles.
         self.fan.clear();
-        for (index, t) in body.surface.triangles.iter().enumerate() {
-            for &v in t {
-                if self.cut_stamp[v as usize] == stamp && self.fan.len() < self.fan.capacity() {
-                    self.fan.push((v, index as u32));
+        self.path_nodes.clear();
+        for &(p, q) in &self.path_edges {
+            for v in [p, q] {
+                if self.path_nodes.len() < self.path_nodes.capacity() {
+                    self.path_nodes.push(v);
+                }
+            }
+        }
+        self.path_nodes.sort_unstable();
+        self.path_nodes.dedup();
+        let indexed = self.index.as_ref().is_some_and(|i| i.is_valid_for(body))
+            && self.path_nodes.len() < self.path_nodes.capacity();
+        if indexed {
+            let index = self.index.as_mut().expect("indexed");
+            let h = &body.surface.homologue_in_body;
+            for &v in &self.path_nodes {
+                let mark = index.begin();
+                let at = RestIndex::point(&h[v as usize]);
+                index.collect_triangles(body, &at, mark, |_, t| t.contains(&v));
+                for &t in &index.found {
+                    if self.fan.len() < FAN_ROOM {
+                        self.fan.push((v, t));
+                    }
+                }
+            }
+        } else {
+            for (index, t) in body.surface.triangles.iter().enumerate() {
+                for &v in t {
+                    if self.cut_stamp[v as usize] == stamp && self.fan.len() < FAN_ROOM {
+                        self.fan.push((v, index as u32));
+                    }
                 }
             }
         }
@@ -1525,7 +1763,32 @@ impl Cutter {
         if copies > 0 {
             let n_after = body.node_count();
             let edge_count = body.edges.len();
-            for k in 0..edge_count {
+            // The springs with an end on the path: from the index round each node of the path
+            // (copies sit on their origin's rest place), or all of them.
+            if indexed {
+                let index = self.index.as_mut().expect("indexed");
+                let h = &body.surface.homologue_in_body;
+                let marks = &self.cut_stamp;
+                let mark = index.begin();
+                for &v in &self.path_nodes {
+                    let at = RestIndex::point(&h[v as usize]);
+                    index.collect_edges(body, &at, mark, |_, a, b| {
+                        marks[a as usize] == stamp || marks[b as usize] == stamp
+                    });
+                }
+                index.finish();
+            }
+            let count = if indexed {
+                self.index.as_ref().expect("indexed").found.len()
+            } else {
+                edge_count
+            };
+            for i in 0..count {
+                let k = if indexed {
+                    self.index.as_ref().expect("indexed").found[i] as usize
+                } else {
+                    i
+                };
                 let (a, b) = (body.edges.a[k], body.edges.b[k]);
                 let touched =
                     self.cut_stamp[a as usize] == stamp || self.cut_stamp[b as usize] == stamp;
@@ -1570,6 +1833,7 @@ impl Cutter {
                     let (rest, stiffness, damping) =
                         (e.rest_length[k], e.stiffness[k], e.damping[k]);
                     e.push(pairs[1].0, pairs[1].1, rest, stiffness, damping);
+                    self.edge_changed(body, (body.edges.len() - 1) as u32);
                     opened += 1;
                     body.boundary_edges += 2;
                 }

@@ -26,6 +26,7 @@
 
 pub mod cut;
 pub mod refine;
+pub mod rest_index;
 pub mod tear;
 pub mod transect;
 
