@@ -308,7 +308,10 @@ fn ten_thousand_random_strokes_keep_every_invariant() {
                     from[0] + motion / count as f64,
                     from[1] + motion / count as f64,
                 ];
-                let step = cutter.cut(&mut body, tool, from, to);
+                // What the world hands the cutter: the box of the nodes and their reach from their
+                // rest places (the blade's search then goes through the rest-frame index).
+                let extent = Cutter::measure_extent(&body);
+                let step = cutter.cut_within(&mut body, tool, from, to, Some(&extent));
                 steps += 1;
                 refused += step.refused as u64;
                 let context = format!("round {round}, stroke {strokes}, step {s}");
