@@ -946,6 +946,12 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
         );
         assert_eq!(body.surface.mass, body_a.surface.mass, "stroke {stroke}");
         assert_eq!(body.edges.a, body_a.edges.a, "stroke {stroke}");
+        let (d, d_a) = (&body.surface, &body_a.surface);
+        assert_eq!(
+            d.stiffness_diagonal, d_a.stiffness_diagonal,
+            "stroke {stroke}"
+        );
+        assert_eq!(d.damping_diagonal, d_a.damping_diagonal, "stroke {stroke}");
         assert_eq!(
             cutter.counters.passes, passes,
             "stroke {stroke}: a pass was made"

@@ -270,6 +270,10 @@ pub struct Cutter {
     side_stamp: Vec<u32>,
     /// Scratch: the nodes of the path, each once.
     path_nodes: Vec<u32>,
+    /// Scratch: the nodes whose stiffness and damping diagonals a step may have changed.
+    touched: Vec<u32>,
+    /// The body's node count when the step began.
+    nodes_at_start: usize,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -370,6 +374,8 @@ impl Cutter {
             }),
             side_stamp: vec![0; capacity],
             path_nodes: Vec::with_capacity(16 * MAX_CROSSINGS),
+            touched: Vec::with_capacity(3 * MAX_CREATED + 16 * MAX_CROSSINGS),
+            nodes_at_start: 0,
         }
     }
 
@@ -545,6 +551,7 @@ impl Cutter {
         let size = (quad[1] - quad[0]).norm().max((quad[2] - quad[3]).norm());
         let stamp = self.next_stamp();
         let n = body.node_count();
+        self.nodes_at_start = n;
         if self.node_stamp.len() < n {
             // Cannot happen within the reserved room; refuse rather than grow on the tick.
             step.refused = true;
@@ -820,11 +827,81 @@ impl Cutter {
             if let Some(index) = self.index.as_mut() {
                 index.caught_up(body);
             }
-            body.refresh_diagonals();
+            self.refresh_diagonals(body);
             self.counters.steps += 1;
             self.counters.splits += step.splits as u64;
             self.counters.copies += copies as u64;
             self.counters.opened_edges += opened as u64;
+        }
+    }
+
+    /// The stiffness and damping diagonals (link, air and the springs at each node) of the nodes the
+    /// step changed — the corners of the triangles it created, the ends of its crossings, its path,
+    /// its copies and new nodes — each summed afresh over its springs in index order (from the
+    /// index), as [`Body::refresh_diagonals`] sums them, so the same bits; that pass over every node
+    /// and spring when there is no index.
+    fn refresh_diagonals(&mut self, body: &mut Body) {
+        let n = body.node_count();
+        let s = &body.surface;
+        let usable = self.index.as_ref().is_some_and(|i| i.is_valid_for(body))
+            && s.stiffness_diagonal.len() == n
+            && s.damping_diagonal.len() == n;
+        if !usable {
+            body.refresh_diagonals();
+            return;
+        }
+        let touched = &mut self.touched;
+        touched.clear();
+        let mut overflow = false;
+        let mut add = |v: u32| {
+            if (v as usize) < n {
+                if touched.len() < touched.capacity() {
+                    touched.push(v);
+                } else {
+                    overflow = true;
+                }
+            }
+        };
+        let triangles = &s.triangles;
+        for &(t, _) in &self.created {
+            if let Some(corners) = triangles.get(t as usize) {
+                corners.iter().for_each(|&v| add(v));
+            }
+        }
+        for c in &self.crossings {
+            add(c.a);
+            add(c.b);
+            add(c.node);
+        }
+        for &(p, q) in &self.path_edges {
+            add(p);
+            add(q);
+        }
+        self.copies.iter().for_each(|&v| add(v));
+        (self.nodes_at_start.min(n)..n).for_each(|v| add(v as u32));
+        if overflow {
+            body.refresh_diagonals();
+            return;
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        let index = self.index.as_mut().expect("usable");
+        for &v in touched.iter() {
+            let i = v as usize;
+            let mark = index.begin();
+            let at = RestIndex::point(&body.surface.homologue_in_body[i]);
+            index.collect_edges(body, &at, mark, |_, a, b| a == v || b == v);
+            index.finish();
+            let s = &body.surface;
+            let (mut k, mut c) = (s.link_stiffness[i], s.link_damping[i] + s.air_damping[i]);
+            let e = &body.edges;
+            for &edge in &index.found {
+                k += e.stiffness[edge as usize];
+                c += e.damping[edge as usize];
+            }
+            let s = &mut body.surface;
+            s.stiffness_diagonal[i] = k;
+            s.damping_diagonal[i] = c;
         }
     }
 
@@ -848,6 +925,7 @@ impl Cutter {
             return step;
         }
         self.sync_index(body);
+        self.nodes_at_start = n;
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
         self.new_path_from = self.pending.len();
