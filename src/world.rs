@@ -646,6 +646,11 @@ impl World {
             return;
         };
         let body = &mut self.bodies[b];
+        // One part before, and every opening since joined its copies to their origins again.
+        if cutter.connected {
+            cutter.counters.parts_searches_spared += 1;
+            return;
+        }
         if !cutter
             .transector
             .fits(body.node_count(), body.surface.triangles.len())
@@ -653,6 +658,7 @@ impl World {
             return;
         }
         let parts = cutter.transector.find_parts(body);
+        cutter.connected = parts == 1;
         if parts < 2 {
             return;
         }
@@ -694,6 +700,8 @@ impl World {
                 .map(|(k, index)| (if k == 0 { b } else { first_piece + k - 1 }, index))
         });
         cutter.renumbered();
+        // Not known until the next parts search (renumbered, capped).
+        cutter.connected = false;
         self.solvers[b].topology_changed(body, dt);
         self.kernels[b].invalidate();
         self.broad[b].held.invalidate();

@@ -1001,10 +1001,14 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
     let builds = cutter.index.as_ref().map_or(0, |i| i.builds);
     println!(
         "incision scene, 2 s: {} away, {} near (index), {} passes, {} cut steps, index built \
-         {builds} time(s)",
-        c.away_ticks, c.local_steps, c.passes, c.steps
+         {builds} time(s), {} parts searches spared",
+        c.away_ticks, c.local_steps, c.passes, c.steps, c.parts_searches_spared
     );
     assert!(c.local_steps > 500 && c.steps >= 5, "{c:?}");
+    // One parts search (the first opening), then each opening's copies were joined to their
+    // origins round the cut: the organ is still one body.
+    assert!(c.parts_searches_spared >= 3, "{c:?}");
+    assert_eq!(world.bodies.len(), 1);
     assert_eq!(c.passes, 0, "{c:?}");
     assert_eq!(builds, 1);
 }

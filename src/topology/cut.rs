@@ -76,6 +76,9 @@ pub struct CutCounters {
     pub cap_quality_misses: u64,
     /// Blade steps that looked only at the springs near the blade (the rest-frame index).
     pub local_steps: u64,
+    /// Parts searches spared: the body was one part and every copy since was joined to its
+    /// origin again by the search round the cut.
+    pub parts_searches_spared: u64,
     /// Blade steps that ended at the box of the nodes (the blade away from the body): no work.
     pub away_ticks: u64,
     /// Blade steps that passed over the body's nodes (the blade's box meets the nodes' box).
@@ -112,6 +115,9 @@ const MIN_COPY_SHARE: f64 = 0.1;
 const MAX_TIPS: usize = 8;
 /// Most (node, triangle) entries of the fans round a step's path.
 const FAN_ROOM: usize = 16 * MAX_CROSSINGS;
+/// Most nodes the search joining a step's copies to their origins visits before it gives up (and
+/// the parts search passes over the body).
+const REJOIN_BUDGET: usize = 512;
 
 #[derive(Clone, Copy, Debug)]
 enum Choice {
@@ -274,6 +280,11 @@ pub struct Cutter {
     touched: Vec<u32>,
     /// The body's node count when the step began.
     nodes_at_start: usize,
+    /// The body is known to be one part (its springs join every node): a parts search found one,
+    /// and every opening since joined each copy it made to its origin again.
+    pub connected: bool,
+    /// Scratch of the search that joins a copy to its origin.
+    queue: Vec<u32>,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -376,6 +387,8 @@ impl Cutter {
             path_nodes: Vec::with_capacity(16 * MAX_CROSSINGS),
             touched: Vec::with_capacity(3 * MAX_CREATED + 16 * MAX_CROSSINGS),
             nodes_at_start: 0,
+            connected: false,
+            queue: Vec::with_capacity(REJOIN_BUDGET + 1),
         }
     }
 
@@ -452,6 +465,7 @@ impl Cutter {
     /// Starts afresh on a new piece of a body: no tips, no counts, blades not through.
     pub fn restart(&mut self) {
         self.renumbered();
+        self.connected = false;
         self.counters = CutCounters::default();
         self.smallest_created_angle_deg = 180.0;
         self.through.fill(false);
@@ -828,11 +842,66 @@ impl Cutter {
                 index.caught_up(body);
             }
             self.refresh_diagonals(body);
+            // A body that was one part still is when every copy is joined to its origin again
+            // (then every spring path of before has one now): no parts search needed.
+            if copies > 0 && self.connected && !self.copies_rejoined(body) {
+                self.connected = false;
+            }
             self.counters.steps += 1;
             self.counters.splits += step.splits as u64;
             self.counters.copies += copies as u64;
             self.counters.opened_edges += opened as u64;
         }
+    }
+
+    /// Whether every copy this step made is joined to its origin by a path of springs, found by a
+    /// search from the copy over the springs the index lists at each node (at most
+    /// [`REJOIN_BUDGET`] nodes visited in all; false when it gives up or there is no index).
+    fn copies_rejoined(&mut self, body: &Body) -> bool {
+        let mut visits = 0usize;
+        for i in 0..self.copies.len() {
+            let (start, goal) = (self.copies[i], self.copy_origin[i]);
+            let stamp = self.next_stamp();
+            let Some(index) = self.index.as_mut().filter(|x| x.is_valid_for(body)) else {
+                return false;
+            };
+            let h = &body.surface.homologue_in_body;
+            let (marks, queue) = (&mut self.node_stamp, &mut self.queue);
+            queue.clear();
+            queue.push(start);
+            marks[start as usize] = stamp;
+            let mut head = 0;
+            let mut reached = false;
+            while head < queue.len() && !reached {
+                let u = queue[head];
+                head += 1;
+                visits += 1;
+                if visits > REJOIN_BUDGET {
+                    return false;
+                }
+                let mark = index.begin();
+                let at = RestIndex::point(&h[u as usize]);
+                index.collect_edges(body, &at, mark, |_, a, b| {
+                    let w = if a == u {
+                        b
+                    } else if b == u {
+                        a
+                    } else {
+                        return false;
+                    };
+                    if marks[w as usize] != stamp && queue.len() < queue.capacity() {
+                        marks[w as usize] = stamp;
+                        queue.push(w);
+                        reached |= w == goal;
+                    }
+                    false
+                });
+            }
+            if !reached {
+                return false;
+            }
+        }
+        true
     }
 
     /// The stiffness and damping diagonals (link, air and the springs at each node) of the nodes the
