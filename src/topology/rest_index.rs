@@ -90,8 +90,16 @@ impl CellGrid {
         [lo[0]..=hi[0], lo[1]..=hi[1], lo[2]..=hi[2]]
     }
 
-    fn index(&self, x: usize, y: usize, z: usize) -> usize {
-        (z * self.dims[1] + y) * self.dims[0] + x
+    /// Calls `f` with every cell the box meets, in a fixed order.
+    fn for_cells(&self, b: &Aabb, mut f: impl FnMut(usize)) {
+        let [rx, ry, rz] = self.range(b);
+        for z in rz {
+            for y in ry.clone() {
+                for x in rx.clone() {
+                    f((z * self.dims[1] + y) * self.dims[0] + x);
+                }
+            }
+        }
     }
 
     /// Lists items `0..count` by their boxes. False (and an empty grid) when the listings would not
@@ -106,18 +114,14 @@ impl CellGrid {
         self.items.clear();
         // Count the listings of each cell (in start[c + 1]), then their places.
         let mut total = 0usize;
+        let mut counts = std::mem::take(&mut self.start);
         for i in 0..count {
-            let [rx, ry, rz] = self.range(&boxes(i));
-            for z in rz {
-                for y in ry.clone() {
-                    for x in rx.clone() {
-                        let c = self.index(x, y, z);
-                        self.start[c + 1] += 1;
-                        total += 1;
-                    }
-                }
-            }
+            self.for_cells(&boxes(i), |c| {
+                counts[c + 1] += 1;
+                total += 1;
+            });
         }
+        self.start = counts;
         if total > self.room {
             self.start.iter_mut().for_each(|s| *s = 0);
             return false;
@@ -129,18 +133,14 @@ impl CellGrid {
         // Fill each cell from its start, items in index order; `head` serves as the fill count.
         let mut filled = std::mem::take(&mut self.head);
         filled.iter_mut().for_each(|f| *f = 0);
+        let mut items = std::mem::take(&mut self.items);
         for i in 0..count {
-            let [rx, ry, rz] = self.range(&boxes(i));
-            for z in rz {
-                for y in ry.clone() {
-                    for x in rx.clone() {
-                        let c = self.index(x, y, z);
-                        self.items[self.start[c] as usize + filled[c] as usize] = i as u32;
-                        filled[c] += 1;
-                    }
-                }
-            }
+            self.for_cells(&boxes(i), |c| {
+                items[self.start[c] as usize + filled[c] as usize] = i as u32;
+                filled[c] += 1;
+            });
         }
+        self.items = items;
         filled.iter_mut().for_each(|f| *f = NONE);
         self.head = filled;
         true
@@ -154,37 +154,31 @@ impl CellGrid {
         if self.items.len() + self.extra.len() + cells > self.room {
             return false;
         }
-        for z in rz {
-            for y in ry.clone() {
-                for x in rx.clone() {
-                    let c = self.index(x, y, z);
-                    self.extra.push((item, self.head[c]));
-                    self.head[c] = (self.extra.len() - 1) as u32;
-                }
-            }
-        }
+        let (mut extra, mut head) = (
+            std::mem::take(&mut self.extra),
+            std::mem::take(&mut self.head),
+        );
+        self.for_cells(b, |c| {
+            extra.push((item, head[c]));
+            head[c] = (extra.len() - 1) as u32;
+        });
+        (self.extra, self.head) = (extra, head);
         true
     }
 
     /// Calls `f` with every item listed in a cell the box meets (an item may come more than once).
     fn query(&self, b: &Aabb, mut f: impl FnMut(u32)) {
-        let [rx, ry, rz] = self.range(b);
-        for z in rz {
-            for y in ry.clone() {
-                for x in rx.clone() {
-                    let c = self.index(x, y, z);
-                    for &item in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
-                        f(item);
-                    }
-                    let mut e = self.head[c];
-                    while e != NONE {
-                        let (item, next) = self.extra[e as usize];
-                        f(item);
-                        e = next;
-                    }
-                }
+        self.for_cells(b, |c| {
+            for &item in &self.items[self.start[c] as usize..self.start[c + 1] as usize] {
+                f(item);
             }
-        }
+            let mut e = self.head[c];
+            while e != NONE {
+                let (item, next) = self.extra[e as usize];
+                f(item);
+                e = next;
+            }
+        });
     }
 }
 
@@ -392,22 +386,12 @@ impl RestIndex {
     /// The spring between `a` and `b` with the least index, if any (a pass over the springs finds
     /// that one first).
     pub fn find_edge(&mut self, body: &Body, a: u32, b: u32) -> Option<usize> {
-        let stamp = self.next_stamp();
-        let e = &body.edges;
-        let mut best = None::<u32>;
-        let marks = &mut self.edge_stamp;
+        let mark = self.begin();
         let at = Self::point(&body.surface.homologue_in_body[a as usize]);
-        self.edges.query(&at, |k| {
-            let i = k as usize;
-            if i < e.len() && marks[i] != stamp {
-                marks[i] = stamp;
-                let (p, q) = (e.a[i], e.b[i]);
-                if ((p == a && q == b) || (p == b && q == a)) && best.is_none_or(|m| k < m) {
-                    best = Some(k);
-                }
-            }
+        self.collect_edges(body, &at, mark, |_, p, q| {
+            (p == a && q == b) || (p == b && q == a)
         });
-        best.map(|k| k as usize)
+        self.found.iter().min().map(|&k| k as usize)
     }
 
     /// The triangle with least index that `keep` accepts among those with a corner at `v`.
@@ -417,21 +401,9 @@ impl RestIndex {
         v: u32,
         mut keep: impl FnMut(&[u32; 3]) -> bool,
     ) -> Option<usize> {
-        let stamp = self.next_stamp();
-        let triangles = &body.surface.triangles;
-        let mut best = None::<u32>;
-        let marks = &mut self.triangle_stamp;
+        let mark = self.begin();
         let at = Self::point(&body.surface.homologue_in_body[v as usize]);
-        self.triangles.query(&at, |t| {
-            let i = t as usize;
-            if i < triangles.len() && marks[i] != stamp {
-                marks[i] = stamp;
-                let tri = &triangles[i];
-                if tri.contains(&v) && keep(tri) && best.is_none_or(|m| t < m) {
-                    best = Some(t);
-                }
-            }
-        });
-        best.map(|t| t as usize)
+        self.collect_triangles(body, &at, mark, |_, t| t.contains(&v) && keep(t));
+        self.found.iter().min().map(|&t| t as usize)
     }
 }
