@@ -1077,14 +1077,13 @@ impl World {
                 let extent = if blades && cutter.blades {
                     guard.measure(body, true);
                     // Every node within the guard's largest stretch of its homologue as the force
-                    // stage placed it (grown for the rounding of that placement).
+                    // stage placed it.
                     guard.node_bounds().map(|bounds| NodeExtent {
                         bounds,
-                        frame: kernel.homologue_frame.zip(guard.node_reach()).map(
-                            |((rotation, origin), reach)| {
-                                (rotation, origin, reach * (1.0 + 1e-12) + 1e-12)
-                            },
-                        ),
+                        frame: kernel
+                            .homologue_frame
+                            .zip(guard.node_reach())
+                            .map(|((rotation, origin), reach)| (rotation, origin, reach)),
                     })
                 } else {
                     None

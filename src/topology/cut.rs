@@ -501,7 +501,7 @@ impl Cutter {
     }
 
     /// [`NodeExtent`] of `body` measured now by a pass over its nodes (its rigid component's
-    /// placement; the reach slightly grown for rounding): what the world hands [`Cutter::cut_within`],
+    /// placement): what the world hands [`Cutter::cut_within`],
     /// for callers that step a body themselves.
     pub fn measure_extent(body: &Body) -> NodeExtent {
         let r = &body.rigid;
@@ -516,7 +516,7 @@ impl Cutter {
         }
         NodeExtent {
             bounds,
-            frame: Some((rotation, origin, reach * (1.0 + 1e-12) + 1e-12)),
+            frame: Some((rotation, origin, reach)),
         }
     }
 
@@ -591,25 +591,16 @@ impl Cutter {
         let local = if let Some((rotation, origin, reach)) = frame {
             let mut rest = Aabb::empty();
             for corner in 0..8 {
-                let c = Vec3::new(
-                    if corner & 1 == 0 {
-                        bounds.min.x
+                let c = Vec3::from([0, 1, 2].map(|k| {
+                    if (corner >> k) & 1 == 0 {
+                        bounds.min[k]
                     } else {
-                        bounds.max.x
-                    },
-                    if corner & 2 == 0 {
-                        bounds.min.y
-                    } else {
-                        bounds.max.y
-                    },
-                    if corner & 4 == 0 {
-                        bounds.min.z
-                    } else {
-                        bounds.max.z
-                    },
-                );
+                        bounds.max[k]
+                    }
+                }));
                 rest.include(&(rotation.transpose() * (c - origin)));
             }
+            // Grown by the reach, and for the rounding of the placements (here and of the homologues).
             rest.inflate(reach + 1e-9 * (1.0 + rest.max.abs().max() + rest.min.abs().max()));
             if let Some(index) = self.index.as_mut() {
                 let mark = index.begin();
@@ -1682,7 +1673,7 @@ impl Cutter {
                     }
                     // The triangle across a→b (b→a in it), and whether one already joins c to w.
                     let across = |u: &[u32; 3]| (0..3).any(|j| u[j] == b && u[(j + 1) % 3] == a);
-                    let found = match self.index.as_mut().filter(|i| i.is_valid_for(body)) {
+                    let found = match self.index_for(body) {
                         Some(index) => index.first_triangle_at(body, a, across),
                         None => body.surface.triangles.iter().position(across),
                     };
@@ -1696,7 +1687,7 @@ impl Cutter {
                         continue;
                     }
                     let joined = |u: &[u32; 3]| u.contains(&c) && u.contains(&w);
-                    let exists = match self.index.as_mut().filter(|i| i.is_valid_for(body)) {
+                    let exists = match self.index_for(body) {
                         Some(index) => index.first_triangle_at(body, c, joined).is_some(),
                         None => body.surface.triangles.iter().any(joined),
                     };
