@@ -102,8 +102,8 @@ const FLIP_ROUNDS: usize = 4;
 const FLIP_FLATNESS: f64 = 0.9;
 /// Steps (fractions of the edge) and their count each way when a split slides for quality, and the
 /// range of fractions a split may take.
-const SLIDE_STEP: f64 = 0.04;
-const SLIDE_STEPS: usize = 6;
+const SLIDE_STEP: f64 = 0.02;
+const SLIDE_STEPS: usize = 12;
 const SLIDE_RANGE: (f64, f64) = (0.2, 0.8);
 /// Rounding allowed when a created triangle is held to its parent's smallest angle (degrees).
 const FLOOR_ROUNDING_DEG: f64 = 1e-6;
@@ -135,6 +135,9 @@ struct Crossing {
     b: u32,
     edge: u32,
     t: f64,
+    /// Where along the edge the blade's sweep crossed it (`t` before any slide; for a split made
+    /// for quality, its fraction).
+    crossed: f64,
     choice: Choice,
     /// The node the crossing becomes: the snapped end or the new node.
     node: u32,
@@ -703,6 +706,7 @@ impl Cutter {
                 b,
                 edge: k as u32,
                 t,
+                crossed: t,
                 choice,
                 node: match choice {
                     Choice::Snap(v) => v,
@@ -1363,10 +1367,16 @@ impl Cutter {
                     })
                     .fold(0.0, f64::max);
                 let tol = self.tolerance(local);
+                // Each end's distance from the sweep: in the world, or in rest coordinates along
+                // the edge from where the blade crossed it (that point is on the swept surface as
+                // the rest shape maps it; in a deformed body the two differ, and the fidelity
+                // bound is the rest one).
                 let x = &body.surface.position_in_world;
+                let rest = (h[crossing.a as usize] - h[crossing.b as usize]).norm();
                 let (da, db) = (
-                    quad_distance(&x[crossing.a as usize], quad),
-                    quad_distance(&x[crossing.b as usize], quad),
+                    quad_distance(&x[crossing.a as usize], quad).min(crossing.crossed * rest),
+                    quad_distance(&x[crossing.b as usize], quad)
+                        .min((1.0 - crossing.crossed) * rest),
                 );
                 let (v, d) = if da <= db {
                     (crossing.a, da)
@@ -1513,6 +1523,7 @@ impl Cutter {
                 b: v,
                 edge: edge as u32,
                 t: along,
+                crossed: along,
                 choice: Choice::Split,
                 node: u32::MAX,
                 on_path: false,
