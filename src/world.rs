@@ -914,6 +914,7 @@ impl World {
                 );
             }
             clock.enter(Stage::Forces);
+            kernel.refresh_with(body, cutter.as_ref().map(|c| &c.changes));
             kernel.edge_forces(body);
             if attached {
                 for (node, force) in self.attachments.forces_on(b) {
@@ -1071,6 +1072,8 @@ impl World {
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
             {
+                // What this tick's cuts and tears change, for the force kernel and the solver.
+                cutter.changes.begin(body.topology_version);
                 // The guard's pass over the nodes, taken now with the box of their positions: a
                 // blade whose sweep misses the box is away, at no cost (the guard reads the pass).
                 clock.enter(Stage::Guard);
@@ -1144,6 +1147,7 @@ impl World {
                 }
                 if changed {
                     cutter.changed_at = self.tick + 1;
+                    cutter.changes.seal(body.topology_version);
                     if let Some(refinement) = refinement.as_mut() {
                         refinement.commit(body);
                     }

@@ -1012,3 +1012,48 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
     assert_eq!(c.passes, 0, "{c:?}");
     assert_eq!(builds, 1);
 }
+
+/// A tick that cuts tells the force kernel which springs it changed: the kernel compares only those
+/// with the copy it holds, and its batches come out lane for lane as a kernel that compares every
+/// spring makes them (here one that follows the same body a tick behind, as the world's kernel
+/// does: it refreshes at the next tick's force stage). On the incision scene (the organ cut, one
+/// body) and the transection scene (the tube cut in two, then renumbered).
+#[test]
+fn the_force_kernel_follows_a_cut_from_its_record_of_changed_springs() {
+    use palpa::dynamics::kernel::ForceKernel;
+    for (path, ticks) in [
+        ("scenes/incision.toml", 1500),
+        ("scenes/transection.toml", 900),
+    ] {
+        let text = std::fs::read_to_string(format!("{}/{path}", env!("CARGO_MANIFEST_DIR")))
+            .expect("the scene");
+        let mut world = World::from_scene(&common::scene(&text));
+        let mut reference = ForceKernel::new(&world.bodies[0]);
+        reference.refresh(&world.bodies[0]);
+        let mut compared = 0;
+        for tick in 0..ticks {
+            world.step();
+            let kernel = world.force_kernel(0).expect("a kernel");
+            assert_eq!(
+                kernel.batches().lanes(),
+                reference.batches().lanes(),
+                "{path}, tick {tick}: the batches differ"
+            );
+            compared += 1;
+            reference.refresh(&world.bodies[0]);
+        }
+        let kernel = world.force_kernel(0).expect("a kernel");
+        println!(
+            "{path}: {compared} ticks; patches from the record {}, patches and colourings {:?}, \
+             the reference's {:?}",
+            kernel.listed_patches,
+            kernel.batches().history(),
+            reference.batches().history()
+        );
+        assert!(
+            kernel.listed_patches > 0,
+            "{path}: the record was never used"
+        );
+        assert_eq!(reference.listed_patches, 0);
+    }
+}

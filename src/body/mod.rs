@@ -5,6 +5,7 @@
 //! State is laid out as structure of arrays ([`Surface`], [`Edges`]) indexed by node and edge number.
 //! Every buffer the step writes is sized when the body is built, so stepping never allocates.
 
+pub mod changes;
 mod contact_state;
 pub mod mesh;
 mod rigid;
@@ -14,6 +15,7 @@ pub use contact_state::{JawHold, NO_TOOL, ToolContact};
 pub use rigid::RigidComponent;
 
 use crate::Vec3;
+pub use changes::TopologyChanges;
 use mesh::SurfaceMesh;
 use nalgebra::UnitQuaternion;
 use settings::{

@@ -13,7 +13,7 @@
 //! depend on the path taken (`tests/kernel.rs` checks them against each other).
 
 use crate::Vec3;
-use crate::body::{Body, Edges};
+use crate::body::{Body, Edges, TopologyChanges};
 
 /// Edges per batch (one AVX register of `f64`).
 pub const LANES: usize = 4;
@@ -310,13 +310,27 @@ impl EdgeBatches {
     /// forces add up at a node does too: it depends on the history of the topology changes, which
     /// a replay repeats, and on nothing else.
     pub fn patch(&mut self, edges: &Edges, nodes: usize) -> bool {
+        self.patch_listed(edges, nodes, None)
+    }
+
+    /// [`EdgeBatches::patch`] told which springs changed: `listed` (in increasing order) holds
+    /// every held spring whose ends or values changed (and may hold others), so only those are
+    /// compared with the held copy — no pass over the springs. The same layout as the full
+    /// comparison gives.
+    pub fn patch_listed(&mut self, edges: &Edges, nodes: usize, listed: Option<&[u32]>) -> bool {
         let held = self.held.len();
         let count = edges.len();
         if count < held || nodes < self.nodes || count > self.edge_capacity {
             return false;
         }
         self.pending.clear();
-        for k in 0..held {
+        let all = 0..held as u32;
+        let candidates: &mut dyn Iterator<Item = u32> = match listed {
+            Some(listed) => &mut listed.iter().copied().take_while(|&k| (k as usize) < held),
+            None => &mut all.into_iter(),
+        };
+        for k in candidates {
+            let k = k as usize;
             if self.held.same(edges, k) {
                 continue;
             }
@@ -464,6 +478,8 @@ pub struct ForceKernel {
     built_for: Option<(u64, usize, usize)>,
     /// Use the SIMD path when the machine has one.
     simd: bool,
+    /// Patches made from a record of the changed springs (no comparison of them all).
+    pub listed_patches: u64,
     /// Total mechanical energy of the body at the start of the last step (J): kinetic, elastic
     /// (edges and links) and gravitational, as [`crate::dynamics::guard::body_energy`] defines it.
     pub energy: f64,
@@ -487,6 +503,7 @@ impl ForceKernel {
             force: Vec::with_capacity(nodes),
             built_for: None,
             simd: true,
+            listed_patches: 0,
             energy: 0.0,
             edge_energy: 0.0,
             homologue_frame: None,
@@ -515,10 +532,27 @@ impl ForceKernel {
 
     /// Rebuilds the batches for `body` if its topology changed since they were built.
     pub fn refresh(&mut self, body: &Body) {
+        self.refresh_with(body, None);
+    }
+
+    /// [`ForceKernel::refresh`] with the record of the springs that changed, when there is one:
+    /// if it covers every change since the batches were made, only its springs are compared.
+    pub fn refresh_with(&mut self, body: &Body, changes: Option<&TopologyChanges>) {
         let stamp = (body.topology_version, body.node_count(), body.edges.len());
         if self.built_for != Some(stamp) {
-            let patched =
-                self.built_for.is_some() && self.batches.patch(&body.edges, body.node_count());
+            let listed = match (self.built_for, changes) {
+                (Some((version, ..)), Some(changes))
+                    if changes.covers(version, body.topology_version) =>
+                {
+                    Some(changes.edges())
+                }
+                _ => None,
+            };
+            self.listed_patches += u64::from(listed.is_some());
+            let patched = self.built_for.is_some()
+                && self
+                    .batches
+                    .patch_listed(&body.edges, body.node_count(), listed);
             if !patched {
                 self.batches.rebuild(&body.edges, body.node_count());
             }

@@ -42,7 +42,7 @@ use super::{find_edge, mass_fractions};
 use crate::Vec3;
 pub use crate::body::count_boundary_edges;
 pub use crate::body::settings::CuttingSettings;
-use crate::body::{Body, NewNode};
+use crate::body::{Body, NewNode, TopologyChanges};
 use crate::collision::tool::{Aabb, closest_point_on_triangle};
 
 /// Counters of a body's cuts since the start.
@@ -105,6 +105,8 @@ const FLIP_FLATNESS: f64 = 0.9;
 const SLIDE_STEP: f64 = 0.02;
 const SLIDE_STEPS: usize = 12;
 const SLIDE_RANGE: (f64, f64) = (0.2, 0.8);
+/// Springs and nodes one tick's record of changes holds (more: the followers pass over the mesh).
+const CHANGE_ROOM: usize = 4096;
 /// Rounding allowed when a created triangle is held to its parent's smallest angle (degrees).
 const FLOOR_ROUNDING_DEG: f64 = 1e-6;
 /// Least fraction of an edge from its ends at which a crossing may split it.
@@ -218,6 +220,9 @@ pub struct NodeExtent {
 pub struct Cutter {
     /// Settings from the scene.
     pub settings: CuttingSettings,
+    /// The springs and nodes the cuts and tears changed since the world began the record (at its
+    /// cut stage): what the force kernel and the solver follow instead of passing over the mesh.
+    pub changes: TopologyChanges,
     /// Smallest angle a created triangle may have (degrees).
     pub quality_bound_deg: f64,
     /// Counters since the start.
@@ -341,6 +346,7 @@ impl Cutter {
         let bound = settings.min_angle_deg.min(0.5 * smallest_angle_deg(body));
         Self {
             settings,
+            changes: TopologyChanges::with_capacity(CHANGE_ROOM, CHANGE_ROOM),
             quality_bound_deg: bound,
             counters: CutCounters::default(),
             smallest_created_angle_deg: 180.0,
@@ -422,6 +428,7 @@ impl Cutter {
     }
 
     fn edge_changed(&mut self, body: &Body, k: u32) {
+        self.changes.edge(k);
         if let Some(index) = self.index.as_mut() {
             index.edge_changed(body, k);
         }
@@ -912,6 +919,7 @@ impl Cutter {
             && s.damping_diagonal.len() == n;
         if !usable {
             body.refresh_diagonals();
+            self.changes.lose();
             return;
         }
         let touched = &mut self.touched;
@@ -945,17 +953,20 @@ impl Cutter {
         (self.nodes_at_start.min(n)..n).for_each(|v| add(v as u32));
         if overflow {
             body.refresh_diagonals();
+            self.changes.lose();
             return;
         }
         touched.sort_unstable();
         touched.dedup();
+        // The nodes whose mass, links or springs the step changed are among these (the ends of
+        // every spring it rewrote, split or flipped, the copies and their origins, the new nodes).
+        for &v in touched.iter() {
+            self.changes.node(v);
+        }
         let index = self.index.as_mut().expect("usable");
         for &v in touched.iter() {
             let i = v as usize;
-            let mark = index.begin();
-            let at = RestIndex::point(&body.surface.homologue_in_body[i]);
-            index.collect_edges(body, &at, mark, |_, a, b| a == v || b == v);
-            index.finish();
+            index.incident_edges(body, v);
             let s = &body.surface;
             let (mut k, mut c) = (s.link_stiffness[i], s.link_damping[i] + s.air_damping[i]);
             let e = &body.edges;
@@ -1591,6 +1602,7 @@ impl Cutter {
         e.damping[k] = damping / t_near;
         let t_far = 1.0 - t_near;
         e.push(p, far, rest * t_far, stiffness / t_far, damping / t_far);
+        self.changes.edge(k as u32);
         self.edge_changed(body, (body.edges.len() - 1) as u32);
         // A boundary edge split gives two boundary edges.
         if self.edge_is_boundary(a, b) {
@@ -1975,6 +1987,7 @@ impl Cutter {
                 }
                 body.edges.a[k] = pairs[0].0;
                 body.edges.b[k] = pairs[0].1;
+                self.changes.edge(k as u32);
                 if found == 2 && pairs[0] != pairs[1] {
                     let e = &mut body.edges;
                     e.stiffness[k] *= 0.5;

@@ -378,6 +378,19 @@ impl RestIndex {
         self.found.sort_unstable();
     }
 
+    /// The springs with an end at node `v`, in index order, into `found`; false (nothing found)
+    /// when the index does not describe `body` as it is.
+    pub fn incident_edges(&mut self, body: &Body, v: u32) -> bool {
+        if !self.is_valid_for(body) || v as usize >= body.node_count() {
+            return false;
+        }
+        let mark = self.begin();
+        let at = Self::point(&body.surface.homologue_in_body[v as usize]);
+        self.collect_edges(body, &at, mark, |_, a, b| a == v || b == v);
+        self.finish();
+        true
+    }
+
     /// The box of a point.
     pub fn point(p: &Vec3) -> Aabb {
         Aabb { min: *p, max: *p }
