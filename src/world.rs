@@ -210,11 +210,29 @@ impl BodySolver {
         matches!(self, BodySolver::Multirate(m) if m.rigid_substepped)
     }
 
-    /// Follows a change of the body's topology (allocation-free within the reserved room).
-    fn topology_changed(&mut self, body: &Body, dt: f64) {
+    /// Follows a change of the body's topology (allocation-free within the reserved room): where
+    /// the cutter's record covers it, only at the nodes it lists (their springs from its rest-frame
+    /// index).
+    fn topology_changed(&mut self, body: &Body, dt: f64, cutter: Option<&mut Cutter>) {
         match self {
             BodySolver::Symplectic => {}
-            BodySolver::Multirate(m) => m.rebuild(body, dt),
+            BodySolver::Multirate(m) => match cutter {
+                Some(Cutter {
+                    changes,
+                    index: Some(index),
+                    ..
+                }) if changes.covers(m.synced_version(), body.topology_version) => {
+                    m.follow(body, dt, changes.nodes(), &mut |v, out| {
+                        if !index.incident_edges(body, v) || index.found.len() > out.capacity() {
+                            return false;
+                        }
+                        out.clear();
+                        out.extend_from_slice(&index.found);
+                        true
+                    });
+                }
+                _ => m.rebuild(body, dt),
+            },
             BodySolver::Implicit(i) => i.resize(body),
         }
     }
@@ -702,7 +720,7 @@ impl World {
         cutter.renumbered();
         // Not known until the next parts search (renumbered, capped).
         cutter.connected = false;
-        self.solvers[b].topology_changed(body, dt);
+        self.solvers[b].topology_changed(body, dt, None);
         self.kernels[b].invalidate();
         self.broad[b].held.invalidate();
         if let Some(refinement) = self.refinements[b].as_mut() {
@@ -723,7 +741,7 @@ impl World {
                 spare.body.name.clear();
                 let _ = write!(spare.body.name, "{}.{}", parent_name, self.pieces_named[b]);
             }
-            spare.solver.topology_changed(&spare.body, dt);
+            spare.solver.topology_changed(&spare.body, dt, None);
             if let Some(refinement) = spare.refinement.as_mut() {
                 refinement.renumbered(&spare.body);
             }
@@ -780,6 +798,14 @@ impl World {
             })
             .collect();
         (held.nodes().to_vec(), sweep)
+    }
+
+    /// The multi-rate solver of body `b`, when it has one.
+    pub fn multirate(&self, b: usize) -> Option<&Multirate> {
+        match self.solvers.get(b) {
+            Some(BodySolver::Multirate(m)) => Some(m),
+            _ => None,
+        }
     }
 
     /// The force stage's scratch of body `b` (its edge batches).
@@ -999,7 +1025,7 @@ impl World {
                     );
                     if inserted > 0 {
                         counters.refinements += inserted;
-                        solver.topology_changed(body, dt);
+                        solver.topology_changed(body, dt, None);
                     }
                 }
             }
@@ -1151,7 +1177,7 @@ impl World {
                     if let Some(refinement) = refinement.as_mut() {
                         refinement.commit(body);
                     }
-                    solver.topology_changed(body, dt);
+                    solver.topology_changed(body, dt, Some(cutter));
                 }
             }
             if let Some(refinement) = refinement.as_mut() {
@@ -1159,7 +1185,7 @@ impl World {
                 let removed = refinement.coarsen(body, self.tick + 1, dt);
                 if removed > 0 {
                     counters.coarsenings += removed;
-                    solver.topology_changed(body, dt);
+                    solver.topology_changed(body, dt, None);
                 }
             }
         }

@@ -1013,14 +1013,17 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
     assert_eq!(builds, 1);
 }
 
-/// A tick that cuts tells the force kernel which springs it changed: the kernel compares only those
-/// with the copy it holds, and its batches come out lane for lane as a kernel that compares every
-/// spring makes them (here one that follows the same body a tick behind, as the world's kernel
-/// does: it refreshes at the next tick's force stage). On the incision scene (the organ cut, one
-/// body) and the transection scene (the tube cut in two, then renumbered).
+/// A tick that cuts records which springs and nodes it changed. The force kernel compares only
+/// those springs with the copy it holds, and its batches come out lane for lane as a kernel that
+/// compares every spring makes them (here one that follows the same body a tick behind, as the
+/// world's kernel does: it refreshes at the next tick's force stage). The multi-rate solver sums the
+/// bounds and finds the levels of the recorded nodes only, and classifies the body as a solver made
+/// from scratch does, every tick. On the incision scene (the organ cut, one body) and the
+/// transection scene (the tube cut in two, then renumbered).
 #[test]
-fn the_force_kernel_follows_a_cut_from_its_record_of_changed_springs() {
+fn the_force_kernel_and_the_solver_follow_a_cut_from_its_record_of_changes() {
     use palpa::dynamics::kernel::ForceKernel;
+    use palpa::dynamics::multirate::Multirate;
     for (path, ticks) in [
         ("scenes/incision.toml", 1500),
         ("scenes/transection.toml", 900),
@@ -1031,8 +1034,18 @@ fn the_force_kernel_follows_a_cut_from_its_record_of_changed_springs() {
         let mut reference = ForceKernel::new(&world.bodies[0]);
         reference.refresh(&world.bodies[0]);
         let mut compared = 0;
+        let dt = world.params.dt;
         for tick in 0..ticks {
             world.step();
+            // The solver classifies the nodes as a classification from scratch does.
+            for (b, body) in world.bodies.iter().enumerate() {
+                if let Some(multirate) = world.multirate(b) {
+                    let fresh = Multirate::new(body, dt);
+                    if let Some(part) = multirate.differs_from(&fresh) {
+                        panic!("{path}, tick {tick}, {}: the {part} differ", body.name);
+                    }
+                }
+            }
             let kernel = world.force_kernel(0).expect("a kernel");
             assert_eq!(
                 kernel.batches().lanes(),
@@ -1050,6 +1063,12 @@ fn the_force_kernel_follows_a_cut_from_its_record_of_changed_springs() {
             kernel.batches().history(),
             reference.batches().history()
         );
+        let multirate = world.multirate(0).expect("a multi-rate organ");
+        println!(
+            "{path}: the solver followed {} changes at their nodes, classified {} times in full",
+            multirate.follows, multirate.rebuilds
+        );
+        assert!(multirate.follows > 0, "{path}: the solver never followed");
         assert!(
             kernel.listed_patches > 0,
             "{path}: the record was never used"

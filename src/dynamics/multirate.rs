@@ -34,6 +34,8 @@ pub const SAFETY: f64 = 0.9;
 /// Fraction of the stability limit the rigid component's coupled mode may use when some nodes are
 /// sub-stepped and meet it only once per step.
 pub const EXCHANGE_SAFETY: f64 = 0.45;
+/// Most springs at one node that [`Multirate::follow`] takes (more: it rebuilds).
+const INCIDENT_ROOM: usize = 1024;
 
 /// Scratch and classification of one body.
 #[derive(Clone, Debug)]
@@ -57,6 +59,18 @@ pub struct Multirate {
     pub deep: Vec<u32>,
     /// Each node's level (halvings of the step it needs; in rigid mode at least the rigid component's).
     level: Vec<u32>,
+    /// Each node's own level (the halvings its own bounds need, before the rigid component's).
+    own_level: Vec<u32>,
+    /// Nodes at each own level.
+    level_count: [u32; MAX_LEVEL as usize + 1],
+    /// The body's topology version the classification is for.
+    synced_version: u64,
+    /// A node's springs (scratch of [`Multirate::follow`]).
+    incident: Vec<u32>,
+    /// Topology changes followed at the nodes they touched.
+    pub follows: u64,
+    /// Full classifications (at the start, and for changes not followed).
+    pub rebuilds: u64,
     /// Row of each node in the neighbour lists (`u32::MAX`: none).
     row: Vec<u32>,
     /// Where each node was at the start of its current step, for its neighbours' interpolation.
@@ -109,6 +123,12 @@ impl Multirate {
             base_stride: 1,
             deep: Vec::with_capacity(n),
             level: Vec::with_capacity(n),
+            own_level: Vec::with_capacity(n),
+            level_count: [0; MAX_LEVEL as usize + 1],
+            synced_version: 0,
+            incident: Vec::with_capacity(INCIDENT_ROOM),
+            follows: 0,
+            rebuilds: 0,
             row: Vec::with_capacity(n),
             x_base: Vec::with_capacity(n),
             deep_force: Vec::with_capacity(n),
@@ -162,26 +182,169 @@ impl Multirate {
         self.external.clear();
         self.external.resize(n, Vec3::zeros());
         node_bounds_into(body, &mut self.bound_stiffness, &mut self.bound_damping);
+        self.own_level.clear();
+        self.level_count = [0; MAX_LEVEL as usize + 1];
+        for i in 0..n {
+            let level = self.level_of(body, i, dt);
+            self.own_level.push(level);
+            self.level_count[level as usize] += 1;
+        }
+        self.synced_version = body.topology_version;
+        self.rebuilds += 1;
+        self.classify(body, dt);
+    }
+
+    /// The first part of the classification (and the scratch's sizes) in which `self` and `other`
+    /// differ, if any: what [`Multirate::follow`] must give as [`Multirate::rebuild`] does.
+    pub fn differs_from(&self, other: &Self) -> Option<&'static str> {
+        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let lengths = |m: &Self| {
+            [
+                m.x.len(),
+                m.v.len(),
+                m.f.len(),
+                m.homologue_end.len(),
+                m.x_base.len(),
+                m.deep_force.len(),
+                m.touched.len(),
+                m.external.len(),
+            ]
+        };
+        let parts = [
+            ("fast", self.fast == other.fast),
+            ("deep", self.deep == other.deep),
+            ("level", self.level == other.level),
+            ("own level", self.own_level == other.own_level),
+            ("level count", self.level_count == other.level_count),
+            (
+                "pace",
+                (
+                    self.substeps,
+                    self.base_stride,
+                    self.rigid_substepped,
+                    self.rigid_implicit,
+                ) == (
+                    other.substeps,
+                    other.base_stride,
+                    other.rigid_substepped,
+                    other.rigid_implicit,
+                ),
+            ),
+            ("local", self.local == other.local),
+            ("row", self.row == other.row),
+            (
+                "neighbour lists",
+                (&self.start, &self.neighbour, &self.edge)
+                    == (&other.start, &other.neighbour, &other.edge),
+            ),
+            (
+                "bounds",
+                bits(&self.bound_stiffness) == bits(&other.bound_stiffness)
+                    && bits(&self.bound_damping) == bits(&other.bound_damping),
+            ),
+            ("outside forces", self.external == other.external),
+            ("touched", self.touched == other.touched),
+            ("scratch sizes", lengths(self) == lengths(other)),
+        ];
+        parts.iter().find(|(_, same)| !same).map(|(name, _)| *name)
+    }
+
+    /// The body's topology version this classification is for.
+    pub fn synced_version(&self) -> u64 {
+        self.synced_version
+    }
+
+    /// Follows a change of the body's topology where it happened instead of passing over the mesh:
+    /// `changed` (in increasing order) holds every node whose mass, link, air damping or springs
+    /// changed, and every new node; `incident(v, out)` puts node `v`'s springs into `out` in index
+    /// order (false when it cannot). Only those nodes' bounds and levels are computed again — the
+    /// same sums in the same order as [`Multirate::rebuild`], so the same classification; when a
+    /// node cannot be followed so, the rebuild is made instead. Allocation-free.
+    pub fn follow(
+        &mut self,
+        body: &Body,
+        dt: f64,
+        changed: &[u32],
+        incident: &mut dyn FnMut(u32, &mut Vec<u32>) -> bool,
+    ) {
+        let s = &body.surface;
+        let e = &body.edges;
+        let n = s.mass.len();
+        let before = self.own_level.len();
+        let new_nodes = n.saturating_sub(before);
+        let every_new_node_listed = n >= before
+            && changed.len() >= new_nodes
+            && changed[changed.len() - new_nodes..]
+                .iter()
+                .zip(before..n)
+                .all(|(&v, i)| v as usize == i);
+        if !every_new_node_listed || self.bound_stiffness.len() != before {
+            self.rebuild(body, dt);
+            return;
+        }
+        // Outside forces are zero between steps (their callers clear them after each step).
+        self.external.resize(n, Vec3::zeros());
+        self.bound_stiffness.resize(n, 0.0);
+        self.bound_damping.resize(n, 0.0);
+        self.own_level.resize(n, 0);
+        for &v in changed {
+            let i = v as usize;
+            if !incident(v, &mut self.incident) {
+                self.rebuild(body, dt);
+                return;
+            }
+            let mut stiffness = s.link_stiffness[i];
+            let mut damping = s.link_damping[i] + s.air_damping[i];
+            for &k in &self.incident {
+                stiffness += 2.0 * e.stiffness[k as usize];
+                damping += 2.0 * e.damping[k as usize];
+            }
+            self.bound_stiffness[i] = stiffness;
+            self.bound_damping[i] = damping;
+            if i < before {
+                self.level_count[self.own_level[i] as usize] -= 1;
+            }
+            let level = self.level_of(body, i, dt);
+            self.own_level[i] = level;
+            self.level_count[level as usize] += 1;
+        }
+        self.synced_version = body.topology_version;
+        self.follows += 1;
+        self.classify(body, dt);
+    }
+
+    /// The halvings of the step node `i` needs for its bounds (at most [`MAX_LEVEL`]).
+    fn level_of(&self, body: &Body, i: usize, dt: f64) -> u32 {
+        let mut level = 0;
+        while level < MAX_LEVEL
+            && !stable_at(
+                self.bound_stiffness[i],
+                self.bound_damping[i],
+                body.surface.inverse_mass[i],
+                dt / (1u32 << level) as f64,
+                SAFETY,
+            )
+        {
+            level += 1;
+        }
+        level
+    }
+
+    /// From the nodes' own levels: the fast and deep nodes, the rigid component's pace, the
+    /// neighbour lists and the scratch.
+    fn classify(&mut self, body: &Body, dt: f64) {
+        let n = body.surface.mass.len();
         self.fast.clear();
         self.deep.clear();
         self.level.clear();
-        let mut level_max = 0;
+        let mut level_max = (0..=MAX_LEVEL)
+            .rev()
+            .find(|&l| self.level_count[l as usize] > 0)
+            .unwrap_or(0);
         for i in 0..n {
-            let mut level = 0;
-            while level < MAX_LEVEL
-                && !stable_at(
-                    self.bound_stiffness[i],
-                    self.bound_damping[i],
-                    s.inverse_mass[i],
-                    dt / (1u32 << level) as f64,
-                    SAFETY,
-                )
-            {
-                level += 1;
-            }
+            let level = self.own_level[i];
             if level > 0 {
                 self.fast.push(i as u32);
-                level_max = level_max.max(level);
             }
             self.level.push(level);
         }
