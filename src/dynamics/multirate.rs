@@ -25,7 +25,14 @@ use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
 use crate::contact::obstacle::{point_contact_plane, resolve_point};
 use crate::contact::tool::NO_TOOL;
-use crate::dynamics::stability::{node_bounds_into, rigid_bounds, stable_at};
+use crate::dynamics::stability::{
+    RIGID_TERMS, node_bounds_into, rigid_bounds_from, rigid_terms, stable_at,
+};
+
+/// The sums of two sets of rigid terms.
+fn add_terms(a: &[f64; RIGID_TERMS], b: &[f64; RIGID_TERMS]) -> [f64; RIGID_TERMS] {
+    std::array::from_fn(|k| a[k] + b[k])
+}
 
 /// Largest number of halvings of the step.
 pub const MAX_LEVEL: u32 = 12;
@@ -67,6 +74,12 @@ pub struct Multirate {
     synced_version: u64,
     /// A node's springs (scratch of [`Multirate::follow`]).
     incident: Vec<u32>,
+    /// The nodes' terms of the rigid component's bounds, summed in a fixed binary tree over the
+    /// node slots (leaves from `rigid_width`): a change at a few nodes is summed again along their
+    /// paths to the root, and the sums depend on the nodes' terms only, not on the changes'
+    /// history.
+    rigid_tree: Vec<[f64; RIGID_TERMS]>,
+    rigid_width: usize,
     /// Topology changes followed at the nodes they touched.
     pub follows: u64,
     /// Full classifications (at the start, and for changes not followed).
@@ -127,6 +140,8 @@ impl Multirate {
             level_count: [0; MAX_LEVEL as usize + 1],
             synced_version: 0,
             incident: Vec::with_capacity(INCIDENT_ROOM),
+            rigid_tree: vec![[0.0; RIGID_TERMS]; 2 * n.next_power_of_two()],
+            rigid_width: n.next_power_of_two(),
             follows: 0,
             rebuilds: 0,
             row: Vec::with_capacity(n),
@@ -191,6 +206,7 @@ impl Multirate {
         }
         self.synced_version = body.topology_version;
         self.rebuilds += 1;
+        self.sum_rigid_terms(body);
         self.classify(body, dt);
     }
 
@@ -243,6 +259,10 @@ impl Multirate {
                     && bits(&self.bound_damping) == bits(&other.bound_damping),
             ),
             ("outside forces", self.external == other.external),
+            (
+                "rigid sums",
+                bits(&self.rigid_tree[1]) == bits(&other.rigid_tree[1]),
+            ),
             ("touched", self.touched == other.touched),
             ("scratch sizes", lengths(self) == lengths(other)),
         ];
@@ -278,7 +298,7 @@ impl Multirate {
                 .iter()
                 .zip(before..n)
                 .all(|(&v, i)| v as usize == i);
-        if !every_new_node_listed || self.bound_stiffness.len() != before {
+        if !every_new_node_listed || self.bound_stiffness.len() != before || n > self.rigid_width {
             self.rebuild(body, dt);
             return;
         }
@@ -307,10 +327,42 @@ impl Multirate {
             let level = self.level_of(body, i, dt);
             self.own_level[i] = level;
             self.level_count[level as usize] += 1;
+            self.set_rigid_terms(i, rigid_terms(body, i));
         }
         self.synced_version = body.topology_version;
         self.follows += 1;
         self.classify(body, dt);
+    }
+
+    /// Sums every node's rigid terms in the tree (the slots past the nodes hold zeros). A body
+    /// grown past the tree's room gets a wider tree (at a rebuild, outside the tick's pools).
+    fn sum_rigid_terms(&mut self, body: &Body) {
+        let n = body.surface.mass.len();
+        if n > self.rigid_width {
+            self.rigid_width = n.next_power_of_two();
+            self.rigid_tree = vec![[0.0; RIGID_TERMS]; 2 * self.rigid_width];
+        }
+        let width = self.rigid_width;
+        for i in 0..width {
+            self.rigid_tree[width + i] = if i < n {
+                rigid_terms(body, i)
+            } else {
+                [0.0; RIGID_TERMS]
+            };
+        }
+        for at in (1..width).rev() {
+            self.rigid_tree[at] = add_terms(&self.rigid_tree[2 * at], &self.rigid_tree[2 * at + 1]);
+        }
+    }
+
+    /// Sets node `i`'s rigid terms and sums its path to the root again.
+    fn set_rigid_terms(&mut self, i: usize, terms: [f64; RIGID_TERMS]) {
+        let mut at = self.rigid_width + i;
+        self.rigid_tree[at] = terms;
+        while at > 1 {
+            at /= 2;
+            self.rigid_tree[at] = add_terms(&self.rigid_tree[2 * at], &self.rigid_tree[2 * at + 1]);
+        }
     }
 
     /// The halvings of the step node `i` needs for its bounds (at most [`MAX_LEVEL`]).
@@ -354,7 +406,7 @@ impl Multirate {
         // component joins the substeps.
         let mut rigid_level = 0;
         if !body.rigid.fixed {
-            let bounds = rigid_bounds(body);
+            let bounds = rigid_bounds_from(body, &self.rigid_tree[1]);
             let safety = if level_max > 0 {
                 EXCHANGE_SAFETY
             } else {

@@ -77,22 +77,47 @@ pub fn node_bounds_into(body: &Body, stiffness: &mut Vec<f64>, damping: &mut Vec
 ///
 /// With M = m_s this is the Gershgorin bound 2 Σ k / M of the rigid component's row.
 pub fn rigid_bounds(body: &Body) -> [(f64, f64, f64); 2] {
-    let s = &body.surface;
-    let r = &body.rigid;
-    let (mut k, mut c, mut k_turn, mut c_turn) = (0.0, 0.0, 0.0, 0.0);
-    let mut surface_mass = 0.0;
-    let mut surface_inertia = nalgebra::Matrix3::zeros();
-    for i in 0..s.mass.len() {
-        let arm = s.homologue_in_body[i];
-        let arm2 = arm.norm_squared();
-        k += s.link_stiffness[i];
-        c += s.link_damping[i];
-        k_turn += s.link_stiffness[i] * arm2;
-        c_turn += s.link_damping[i] * arm2;
-        surface_mass += s.mass[i];
-        surface_inertia +=
-            (nalgebra::Matrix3::identity() * arm2 - arm * arm.transpose()) * s.mass[i];
+    let mut sums = [0.0; RIGID_TERMS];
+    for i in 0..body.surface.mass.len() {
+        let terms = rigid_terms(body, i);
+        for (sum, term) in sums.iter_mut().zip(terms) {
+            *sum += term;
+        }
     }
+    rigid_bounds_from(body, &sums)
+}
+
+/// Number of per-node terms of [`rigid_bounds`].
+pub const RIGID_TERMS: usize = 11;
+
+/// Node `i`'s terms of [`rigid_bounds`]' sums: link stiffness and damping, the same times the
+/// squared arm, mass, and the six entries (xx, yy, zz, xy, xz, yz) of its inertia about the
+/// rigid component's centre.
+pub fn rigid_terms(body: &Body, i: usize) -> [f64; RIGID_TERMS] {
+    let s = &body.surface;
+    let arm = s.homologue_in_body[i];
+    let arm2 = arm.norm_squared();
+    let (k, c, m) = (s.link_stiffness[i], s.link_damping[i], s.mass[i]);
+    [
+        k,
+        c,
+        k * arm2,
+        c * arm2,
+        m,
+        (arm2 - arm.x * arm.x) * m,
+        (arm2 - arm.y * arm.y) * m,
+        (arm2 - arm.z * arm.z) * m,
+        (0.0 - arm.x * arm.y) * m,
+        (0.0 - arm.x * arm.z) * m,
+        (0.0 - arm.y * arm.z) * m,
+    ]
+}
+
+/// [`rigid_bounds`] from the sums of the nodes' [`rigid_terms`] (in any order the caller fixes).
+pub fn rigid_bounds_from(body: &Body, sums: &[f64; RIGID_TERMS]) -> [(f64, f64, f64); 2] {
+    let r = &body.rigid;
+    let [k, c, k_turn, c_turn, surface_mass, xx, yy, zz, xy, xz, yz] = *sums;
+    let surface_inertia = nalgebra::Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     let smallest =
         |m: nalgebra::Matrix3<f64>| m.symmetric_eigenvalues().min().max(f64::MIN_POSITIVE);
     let inverse_reduced = 1.0 / r.mass + 1.0 / surface_mass.max(f64::MIN_POSITIVE);
