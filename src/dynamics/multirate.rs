@@ -80,6 +80,8 @@ pub struct Multirate {
     /// history.
     rigid_tree: Vec<[f64; RIGID_TERMS]>,
     rigid_width: usize,
+    /// Leaves that may hold a node's terms (those past it hold zeros).
+    rigid_filled: usize,
     /// Topology changes followed at the nodes they touched.
     pub follows: u64,
     /// Full classifications (at the start, and for changes not followed).
@@ -142,6 +144,7 @@ impl Multirate {
             incident: Vec::with_capacity(INCIDENT_ROOM),
             rigid_tree: vec![[0.0; RIGID_TERMS]; 2 * n.next_power_of_two()],
             rigid_width: n.next_power_of_two(),
+            rigid_filled: 0,
             follows: 0,
             rebuilds: 0,
             row: Vec::with_capacity(n),
@@ -341,22 +344,36 @@ impl Multirate {
         if n > self.rigid_width {
             self.rigid_width = n.next_power_of_two();
             self.rigid_tree = vec![[0.0; RIGID_TERMS]; 2 * self.rigid_width];
+            self.rigid_filled = 0;
         }
+        // Leaves past `filled` and the sums over them only are zero already: only the leaves that
+        // are or were nodes, and the sums above them, are written.
         let width = self.rigid_width;
-        for i in 0..width {
+        let used = n.max(self.rigid_filled);
+        self.rigid_filled = n;
+        if used == 0 {
+            return;
+        }
+        for i in 0..used {
             self.rigid_tree[width + i] = if i < n {
                 rigid_terms(body, i)
             } else {
                 [0.0; RIGID_TERMS]
             };
         }
-        for at in (1..width).rev() {
-            self.rigid_tree[at] = add_terms(&self.rigid_tree[2 * at], &self.rigid_tree[2 * at + 1]);
+        let (mut first, mut last) = (width, width + used - 1);
+        while first > 1 {
+            (first, last) = (first / 2, last / 2);
+            for at in first..=last {
+                self.rigid_tree[at] =
+                    add_terms(&self.rigid_tree[2 * at], &self.rigid_tree[2 * at + 1]);
+            }
         }
     }
 
     /// Sets node `i`'s rigid terms and sums its path to the root again.
     fn set_rigid_terms(&mut self, i: usize, terms: [f64; RIGID_TERMS]) {
+        self.rigid_filled = self.rigid_filled.max(i + 1);
         let mut at = self.rigid_width + i;
         self.rigid_tree[at] = terms;
         while at > 1 {
