@@ -1018,18 +1018,25 @@ fn a_blade_away_from_the_body_costs_no_pass_and_answers_as_the_pass_does() {
 /// compares every spring makes them (here one that follows the same body a tick behind, as the
 /// world's kernel does: it refreshes at the next tick's force stage). The multi-rate solver sums the
 /// bounds and finds the levels of the recorded nodes only, and classifies the body as a solver made
-/// from scratch does, every tick. On the incision scene (the organ cut, one body) and the
-/// transection scene (the tube cut in two, then renumbered).
+/// from scratch does, every tick; with its rigid component sub-stepped, it makes again only the
+/// deep nodes' part of the classification. On the incision scene (the organ cut, one body; also
+/// at 2 562 nodes) and the transection scene (the tube cut in two, then renumbered).
 #[test]
 fn the_force_kernel_and_the_solver_follow_a_cut_from_its_record_of_changes() {
     use palpa::dynamics::kernel::ForceKernel;
     use palpa::dynamics::multirate::Multirate;
-    for (path, ticks) in [
-        ("scenes/incision.toml", 1500),
-        ("scenes/transection.toml", 900),
+    for (path, ticks, finer) in [
+        ("scenes/incision.toml", 1500, false),
+        ("scenes/incision.toml", 1500, true),
+        ("scenes/transection.toml", 900, false),
     ] {
-        let text = std::fs::read_to_string(format!("{}/{path}", env!("CARGO_MANIFEST_DIR")))
+        let mut text = std::fs::read_to_string(format!("{}/{path}", env!("CARGO_MANIFEST_DIR")))
             .expect("the scene");
+        if finer {
+            // The organ at 2 562 nodes: its stiffest node just past the explicit bound, the rigid
+            // component sub-stepped with every node (the cut bench's organ).
+            text = text.replacen("subdivisions = 3", "subdivisions = 4", 1);
+        }
         let mut world = World::from_scene(&common::scene(&text));
         let mut reference = ForceKernel::new(&world.bodies[0]);
         reference.refresh(&world.bodies[0]);
@@ -1065,10 +1072,15 @@ fn the_force_kernel_and_the_solver_follow_a_cut_from_its_record_of_changes() {
         );
         let multirate = world.multirate(0).expect("a multi-rate organ");
         println!(
-            "{path}: the solver followed {} changes at their nodes, classified {} times in full",
-            multirate.follows, multirate.rebuilds
+            "{path}: the solver followed {} changes at their nodes ({} classified again at the \
+             deep nodes only), classified {} times in full",
+            multirate.follows, multirate.near_classifications, multirate.rebuilds
         );
         assert!(multirate.follows > 0, "{path}: the solver never followed");
+        if finer {
+            assert!(multirate.rigid_substepped);
+            assert_eq!(multirate.near_classifications, multirate.follows);
+        }
         assert!(
             kernel.listed_patches > 0,
             "{path}: the record was never used"

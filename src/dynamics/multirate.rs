@@ -86,6 +86,10 @@ pub struct Multirate {
     pub follows: u64,
     /// Full classifications (at the start, and for changes not followed).
     pub rebuilds: u64,
+    /// Followed changes whose classification was made again at the deep nodes only.
+    pub near_classifications: u64,
+    /// The rigid component's own level at the last classification.
+    rigid_level: u32,
     /// Row of each node in the neighbour lists (`u32::MAX`: none).
     row: Vec<u32>,
     /// Where each node was at the start of its current step, for its neighbours' interpolation.
@@ -147,6 +151,8 @@ impl Multirate {
             rigid_filled: 0,
             follows: 0,
             rebuilds: 0,
+            near_classifications: 0,
+            rigid_level: 0,
             row: Vec::with_capacity(n),
             x_base: Vec::with_capacity(n),
             deep_force: Vec::with_capacity(n),
@@ -334,7 +340,11 @@ impl Multirate {
         }
         self.synced_version = body.topology_version;
         self.follows += 1;
-        self.classify(body, dt);
+        if self.classify_near(body, dt, changed, before, incident) {
+            self.near_classifications += 1;
+        } else {
+            self.classify(body, dt);
+        }
     }
 
     /// Sums every node's rigid terms in the tree (the slots past the nodes hold zeros). A body
@@ -382,6 +392,135 @@ impl Multirate {
         }
     }
 
+    /// The finest own level of any node.
+    fn own_level_max(&self) -> u32 {
+        (0..=MAX_LEVEL)
+            .rev()
+            .find(|&l| self.level_count[l as usize] > 0)
+            .unwrap_or(0)
+    }
+
+    /// The halvings of the step the rigid component needs against the surface on all its links
+    /// (and its air), with `level_max` the finest own level of a node. Met once per step by
+    /// sub-stepped nodes, the exchange is explicit and holds only to about half the explicit limit
+    /// (scenes/stress/stiff.toml diverged at ω·Δt = 1.39 of 1.98): then the rigid component joins
+    /// the substeps.
+    fn rigid_level_for(&self, body: &Body, dt: f64, level_max: u32) -> u32 {
+        let mut rigid_level = 0;
+        if !body.rigid.fixed {
+            let bounds = rigid_bounds_from(body, &self.rigid_tree[1]);
+            let safety = if level_max > 0 {
+                EXCHANGE_SAFETY
+            } else {
+                SAFETY
+            };
+            while rigid_level < MAX_LEVEL
+                && !bounds.iter().all(|&(stiffness, damping, inverse_mass)| {
+                    stable_at(
+                        stiffness,
+                        damping,
+                        inverse_mass,
+                        dt / (1u32 << rigid_level) as f64,
+                        safety,
+                    )
+                })
+            {
+                rigid_level += 1;
+            }
+        }
+        rigid_level
+    }
+
+    /// [`Multirate::classify`] where only the nodes `changed` (increasing; the new nodes from
+    /// `before` among them) changed level, for a body whose rigid component is sub-stepped before
+    /// and after at the same pace: every node is fast, and only the deep nodes (finer than the
+    /// rigid component) and their neighbour lists (from `incident`) are made again. Returns false,
+    /// having changed nothing the full classification does not make again, when that does not
+    /// apply.
+    fn classify_near(
+        &mut self,
+        body: &Body,
+        dt: f64,
+        changed: &[u32],
+        before: usize,
+        incident: &mut dyn FnMut(u32, &mut Vec<u32>) -> bool,
+    ) -> bool {
+        let n = body.surface.mass.len();
+        let level_max = self.own_level_max();
+        let rigid_level = self.rigid_level_for(body, dt, level_max);
+        if !self.rigid_substepped
+            || level_max == 0
+            || rigid_level == 0
+            || rigid_level != self.rigid_level
+            || self.level.len() != before
+        {
+            return false;
+        }
+        // Every node steps at least at the rigid component's pace.
+        self.fast.extend(before as u32..n as u32);
+        self.level.resize(n, 0);
+        for &v in changed {
+            self.level[v as usize] = self.own_level[v as usize].max(rigid_level);
+        }
+        let level_max = level_max.max(rigid_level);
+        self.base_stride = 1 << (level_max - rigid_level);
+        self.substeps = 1 << level_max;
+        self.local.extend(before as u32..n as u32);
+        // The deep nodes, finest first then by index, and their rows.
+        self.row.resize(n, u32::MAX);
+        for &i in &self.deep {
+            self.row[i as usize] = u32::MAX;
+        }
+        self.deep.retain(|i| changed.binary_search(i).is_err());
+        let level = &self.level;
+        self.deep.extend(
+            changed
+                .iter()
+                .copied()
+                .filter(|&v| level[v as usize] > rigid_level),
+        );
+        self.deep
+            .sort_unstable_by_key(|&i| (u32::MAX - level[i as usize], i));
+        let count = self.deep.len();
+        self.start.clear();
+        self.start.push(0);
+        self.neighbour.clear();
+        self.edge.clear();
+        let e = &body.edges;
+        for r in 0..count {
+            let i = self.deep[r];
+            self.row[i as usize] = r as u32;
+            if !incident(i, &mut self.incident)
+                || self.neighbour.len() + self.incident.len() > self.neighbour.capacity()
+            {
+                return false;
+            }
+            for &k in &self.incident {
+                let (a, b) = (e.a[k as usize], e.b[k as usize]);
+                self.neighbour.push(if a == i { b } else { a });
+                self.edge.push(k);
+            }
+            self.start.push(self.neighbour.len() as u32);
+        }
+        self.touched.resize(n, false);
+        if count > 0 {
+            self.x_base.resize(n, Vec3::zeros());
+        } else {
+            self.x_base.clear();
+        }
+        self.deep_force.clear();
+        self.deep_force.resize(count, Vec3::zeros());
+        for buffer in [
+            &mut self.x,
+            &mut self.v,
+            &mut self.f,
+            &mut self.homologue_end,
+        ] {
+            buffer.resize(n, Vec3::zeros());
+        }
+        true
+    }
+
     /// The halvings of the step node `i` needs for its bounds (at most [`MAX_LEVEL`]).
     fn level_of(&self, body: &Body, i: usize, dt: f64) -> u32 {
         let mut level = 0;
@@ -406,10 +545,7 @@ impl Multirate {
         self.fast.clear();
         self.deep.clear();
         self.level.clear();
-        let mut level_max = (0..=MAX_LEVEL)
-            .rev()
-            .find(|&l| self.level_count[l as usize] > 0)
-            .unwrap_or(0);
+        let mut level_max = self.own_level_max();
         for i in 0..n {
             let level = self.own_level[i];
             if level > 0 {
@@ -421,28 +557,8 @@ impl Multirate {
         // by sub-stepped nodes, the exchange is explicit and holds only to about half the explicit
         // limit (scenes/stress/stiff.toml diverged at ω·Δt = 1.39 of 1.98): then the rigid
         // component joins the substeps.
-        let mut rigid_level = 0;
-        if !body.rigid.fixed {
-            let bounds = rigid_bounds_from(body, &self.rigid_tree[1]);
-            let safety = if level_max > 0 {
-                EXCHANGE_SAFETY
-            } else {
-                SAFETY
-            };
-            while rigid_level < MAX_LEVEL
-                && !bounds.iter().all(|&(stiffness, damping, inverse_mass)| {
-                    stable_at(
-                        stiffness,
-                        damping,
-                        inverse_mass,
-                        dt / (1u32 << rigid_level) as f64,
-                        safety,
-                    )
-                })
-            {
-                rigid_level += 1;
-            }
-        }
+        let rigid_level = self.rigid_level_for(body, dt, level_max);
+        self.rigid_level = rigid_level;
         // With no node sub-stepped the rigid component alone is past its limit: one implicit update
         // of its six unknowns replaces the substeps its coupling (often its link damping) would need.
         self.rigid_implicit = rigid_level > 0 && level_max == 0;
