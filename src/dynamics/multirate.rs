@@ -502,22 +502,7 @@ impl Multirate {
             }
             self.start.push(self.neighbour.len() as u32);
         }
-        self.touched.resize(n, false);
-        if count > 0 {
-            self.x_base.resize(n, Vec3::zeros());
-        } else {
-            self.x_base.clear();
-        }
-        self.deep_force.clear();
-        self.deep_force.resize(count, Vec3::zeros());
-        for buffer in [
-            &mut self.x,
-            &mut self.v,
-            &mut self.f,
-            &mut self.homologue_end,
-        ] {
-            buffer.resize(n, Vec3::zeros());
-        }
+        self.size_scratch(n);
         true
     }
 
@@ -645,14 +630,18 @@ impl Multirate {
             }
             self.start[count] = slots as u32;
         }
-        self.touched.clear();
+        self.size_scratch(n);
+    }
+
+    /// Sizes the step's scratch to `n` nodes and the fast and deep lists. Every entry of it is
+    /// written before it is read in a step (and `touched` is all false between steps), so what it
+    /// held before does not matter: only the sizes change.
+    fn size_scratch(&mut self, n: usize) {
         self.touched.resize(n, false);
-        self.x_base.clear();
-        self.deep_force.clear();
-        if !self.deep.is_empty() {
-            self.x_base.resize(n, Vec3::zeros());
-            self.deep_force.resize(self.deep.len(), Vec3::zeros());
-        }
+        let deep = self.deep.len();
+        self.x_base
+            .resize(if deep > 0 { n } else { 0 }, Vec3::zeros());
+        self.deep_force.resize(deep, Vec3::zeros());
         let m = self.fast.len();
         for buffer in [
             &mut self.x,
@@ -660,7 +649,6 @@ impl Multirate {
             &mut self.f,
             &mut self.homologue_end,
         ] {
-            buffer.clear();
             buffer.resize(m, Vec3::zeros());
         }
     }
