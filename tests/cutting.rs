@@ -722,6 +722,7 @@ fn random_blade_sessions_keep_every_invariant() {
     let integrators = ["multirate", "implicit", "symplectic"];
     let (mut cut_sessions, mut pieces, mut followed_sessions) = (0, 0, 0);
     let mut quality = [[0u64; 4]; 2];
+    let mut dropped = 0;
     for session in 0..sessions {
         let subdivisions = 2 + session % 2;
         let fixed = session % 3 == 0;
@@ -842,6 +843,7 @@ script = [
             quality[class][0] += c.counters.created_triangles;
             quality[class][1] += c.counters.quality_misses;
             quality[class][2] += c.counters.quality_inherited;
+            dropped += c.counters.quality_splits_dropped;
         }
         quality[class][3] += world.guards.iter().map(|g| g.events).sum::<u64>();
         pieces += world.bodies.len() - 1;
@@ -858,7 +860,7 @@ script = [
     println!(
         "{cut_sessions} of {sessions} sessions cut, {pieces} pieces; {followed_sessions} multi-rate \
          sessions whose solver followed cuts from their record (classification checked every \
-         cutting tick)"
+         cutting tick); {dropped} splits made for quality taken back"
     );
     assert!(
         followed_sessions > 0,
@@ -866,12 +868,12 @@ script = [
     );
     // Under the schemes that hold its light nodes, a cut in a moving, deforming body keeps its
     // created triangles above the bound but for rare ones: the goal is none, not met here (40
-    // sessions each with seeds 7, 13, 99, 2026: 0, 2, 2 and 4 of 2 362 to 3 226; the default run
-    // none) — this guards against going back. The plain symplectic scheme goes past its limit on
-    // those nodes (its guard acts thousands of times) and is only reported.
+    // sessions each with seeds 7, 13, 99, 2026, 1, 5, 42: 0, 0, 0, 1, 0, 0 and 2 of 2 198 to
+    // 3 330; the default run none) — this guards against going back. The plain symplectic scheme
+    // goes past its limit on those nodes (its guard acts thousands of times) and is only reported.
     let [created, misses, ..] = quality[0];
     assert!(
-        misses * 400 <= created,
+        misses * 1000 <= created,
         "{misses} of {created} created triangles below the quality bound"
     );
     assert!(

@@ -66,6 +66,9 @@ pub struct CutCounters {
     /// Created triangles below the quality bound that keep a corner angle of a triangle already
     /// below it (one adaptive subdivision made, say): no split of that triangle can do better.
     pub quality_inherited: u64,
+    /// Splits made for quality taken back before the step applied them (the path crossing that
+    /// called for one snapped since, and it only divided a corner).
+    pub quality_splits_dropped: u64,
     /// Transections of this body (it separated into bodies).
     pub transections: u64,
     /// Caps closing the openings of transections.
@@ -749,6 +752,12 @@ impl Cutter {
             self.number_splits(body);
         }
         self.collect_affected(body, tool, stamp, &quad);
+        // A split made for quality in an earlier round may serve nothing any more (the path
+        // crossing that called for it snapped since) and only divide a corner.
+        while self.drop_needless_split(body) {
+            self.number_splits(body);
+            self.collect_affected(body, tool, stamp, &quad);
+        }
         // Room: nodes for splits and copies, triangles and edges for the templates and lips.
         let splits = self
             .crossings
@@ -1423,12 +1432,26 @@ impl Cutter {
                 if !matches!(crossing.choice, Choice::Split) {
                     continue;
                 }
+                // Round a crossing the triangles' floors differ (a parent already below the
+                // bound), the margins over them rank the places; elsewhere the smallest angle
+                // alone, as the margins would.
+                let mixed = self
+                    .affected
+                    .iter()
+                    .filter(|t| t.crossing.contains(&Some(c as u16)))
+                    .any(|t| {
+                        let h = &body.surface.homologue_in_body;
+                        min_angle_deg(&t.corners.map(|v| h[v as usize])) < bound
+                    });
                 let x = &body.surface.position_in_world;
                 let h = &body.surface.homologue_in_body;
                 let (ia, ib) = (crossing.a as usize, crossing.b as usize);
                 let slot = (crossing.node - n) as usize;
                 let reach = 0.75 * self.tolerance(body.edges.rest_length[crossing.edge as usize]);
                 let quality_at = |cutter: &Self| {
+                    if mixed {
+                        return cutter.margin_round(body, c);
+                    }
                     cutter
                         .affected
                         .iter()
@@ -1464,6 +1487,47 @@ impl Cutter {
             }
         }
         moved
+    }
+
+    /// The smallest margin of the best templates of the affected triangles round crossing `c` over
+    /// their quality floors (the bound, or a parent's smallest angle below it).
+    fn margin_round(&self, body: &Body, c: usize) -> f64 {
+        let h = &body.surface.homologue_in_body;
+        self.affected
+            .iter()
+            .filter(|t| t.crossing.contains(&Some(c as u16)))
+            .map(|t| {
+                let floor = self
+                    .quality_bound_deg
+                    .min(min_angle_deg(&t.corners.map(|v| h[v as usize])));
+                self.best_template_quality(body, t) - floor
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Removes the first split made for quality (off the path) whose triangles' best templates
+    /// stay further above their floors without it; returns whether one went.
+    fn drop_needless_split(&mut self, body: &Body) -> bool {
+        for c in 0..self.crossings.len() {
+            let crossing = self.crossings[c];
+            if crossing.on_path || !matches!(crossing.choice, Choice::Split) {
+                continue;
+            }
+            let with = self.margin_round(body, c);
+            if with >= 0.0 {
+                continue;
+            }
+            // Off the path, a snap is no split and no path point: the templates as without it.
+            self.crossings[c].choice = Choice::Snap(crossing.a);
+            let without = self.margin_round(body, c);
+            self.crossings[c].choice = Choice::Split;
+            if without > with + 1e-9 {
+                self.crossings.remove(c);
+                self.counters.quality_splits_dropped += 1;
+                return true;
+            }
+        }
+        false
     }
 
     /// Adds a middle split on the unsplit edge of every two-split triangle whose best template is
@@ -1769,10 +1833,21 @@ impl Cutter {
                 self.triangle_changed(body, index as u32);
                 self.triangle_changed(body, n as u32);
                 self.edge_changed(body, edge as u32);
-                if !self.created.iter().any(|&(t, _)| t == n as u32)
-                    && self.created.len() < MAX_CREATED
-                {
-                    self.created.push((n as u32, neighbour_floor));
+                // The two triangles replace two: both are held to the lower floor of those (the
+                // neighbour's own smallest angle where the cut did not create it). The flip raised
+                // the smallest angle of the pair; a pair that had a triangle below the bound
+                // before the cut need not come above it.
+                let created_at = self.created.iter().position(|&(t, _)| t == n as u32);
+                let pair_floor = self.created[i]
+                    .1
+                    .min(created_at.map_or(neighbour_floor, |at| self.created[at].1));
+                self.created[i].1 = pair_floor;
+                match created_at {
+                    Some(at) => self.created[at].1 = pair_floor,
+                    None if self.created.len() < MAX_CREATED => {
+                        self.created.push((n as u32, pair_floor));
+                    }
+                    None => {}
                 }
                 flipped = true;
             }
