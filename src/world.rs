@@ -785,6 +785,13 @@ impl World {
         }
     }
 
+    /// How often body `b`'s list of held nodes was swept from every node's contact state, and how
+    /// often it followed a topology change from the cutter's record instead.
+    pub fn held_list_counts(&self, b: usize) -> (u64, u64) {
+        let held = &self.broad[b].held;
+        (held.sweeps, held.follows)
+    }
+
     /// The nodes of body `b` the contact stage will take as held next tick (its list refreshed as
     /// the next step refreshes it), and those a sweep of every node's contact state finds: the two
     /// must agree (tests check it after every step).
@@ -1086,7 +1093,7 @@ impl World {
             .tools
             .iter()
             .any(|t| matches!(t.shape, ToolShape::Blade { .. }) && t.part_count > 0);
-        for (((((body, solver), refinement), cutter), guard), kernel) in self
+        for ((((((body, solver), refinement), cutter), guard), kernel), broad) in self
             .bodies
             .iter_mut()
             .zip(self.solvers.iter_mut())
@@ -1094,6 +1101,7 @@ impl World {
             .zip(self.cutters.iter_mut())
             .zip(self.guards.iter_mut())
             .zip(&self.kernels)
+            .zip(self.broad.iter_mut())
         {
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
@@ -1178,6 +1186,10 @@ impl World {
                         refinement.commit(body);
                     }
                     solver.topology_changed(body, dt, Some(cutter));
+                    // The tools' held nodes, from the same record.
+                    broad
+                        .held
+                        .follow(&body.surface, body.topology_version, &cutter.changes);
                 }
             }
             if let Some(refinement) = refinement.as_mut() {

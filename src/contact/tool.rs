@@ -20,6 +20,7 @@
 
 use crate::Vec3;
 use crate::body::Surface;
+use crate::body::changes::TopologyChanges;
 pub use crate::body::{JawHold, NO_TOOL, ToolContact};
 use crate::collision::tool::{
     Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule,
@@ -216,6 +217,10 @@ pub struct HeldNodes {
     valid: bool,
     version: u64,
     count: usize,
+    /// Sweeps of every node's contact state.
+    pub sweeps: u64,
+    /// Topology changes followed from their record (no sweep).
+    pub follows: u64,
 }
 
 impl HeldNodes {
@@ -245,6 +250,7 @@ impl HeldNodes {
         if self.valid && self.version == version && self.count == count {
             return;
         }
+        self.sweeps += 1;
         self.nodes.clear();
         for (i, contact) in surface.tool_contact.iter().enumerate() {
             if contact.tool != NO_TOOL {
@@ -254,6 +260,35 @@ impl HeldNodes {
         self.valid = true;
         self.version = version;
         self.count = count;
+    }
+
+    /// Follows a topology change from its record instead of sweeping: when the list was up to date
+    /// at a version the record covers, only the nodes the record lists may have changed their
+    /// contact or come new (a cut or a tear moves no node to another index); each is put in or
+    /// taken out of the list. Otherwise the next refresh sweeps.
+    pub fn follow(&mut self, surface: &Surface, version: u64, changes: &TopologyChanges) {
+        let count = surface.tool_contact.len();
+        if !self.valid || !changes.covers(self.version, version) || count < self.count {
+            return;
+        }
+        // Nodes new since the list was made, should the record not list one.
+        let fresh = (self.count..count).map(|i| i as u32);
+        for i in changes.nodes().iter().copied().chain(fresh) {
+            let held = surface
+                .tool_contact
+                .get(i as usize)
+                .is_some_and(|c| c.tool != NO_TOOL);
+            match (self.nodes.binary_search(&i), held) {
+                (Err(at), true) => self.nodes.insert(at, i),
+                (Ok(at), false) => {
+                    self.nodes.remove(at);
+                }
+                _ => {}
+            }
+        }
+        self.version = version;
+        self.count = count;
+        self.follows += 1;
     }
 
     /// Sweeps again if the node count changed since the last refresh (a caller without the body's
