@@ -1190,8 +1190,10 @@ fn cut(args: CutArgs) -> Result<()> {
         bail!("the incision opened nothing");
     }
     let command = format!(
-        "palpa-bench cut{} --out {}",
+        "palpa-bench cut{} --integrator {} --surface-mass {} --out {}",
         if args.quick { " --quick" } else { "" },
+        args.integrator,
+        args.surface_mass,
         args.out.display()
     );
     let cut_spread = spread_of(with_cut.clone());
@@ -1263,7 +1265,7 @@ fn cut(args: CutArgs) -> Result<()> {
     let row = spread_row;
     let mut md = format!(
         "# palpa-bench cut\n\n`{command}` — {} — {}\n\n\
-         A scalpel draws a 10 cm incision in 1 s across the top of a {}-node organ (multi-rate \
+         A scalpel draws a 10 cm incision in 1 s across the top of a {}-node organ ({} \
          integrator, prestress 0.1, one thread); {reps} run(s) of each variant, ticks of the draw \
          (t = 0.5 s to 1.5 s) pooled. *No cut*: the same scene with the blade 6 cm higher. \
          The cut opened {boundary_edges} boundary edges on {cut_ticks} cutting ticks per run. \
@@ -1273,6 +1275,7 @@ fn cut(args: CutArgs) -> Result<()> {
         result["date"].as_str().unwrap_or(""),
         result["machine"].as_str().unwrap_or(""),
         result["nodes"],
+        result["integrator"].as_str().unwrap_or("?"),
     );
     md += &row("with the cut", &result["with_cut"]);
     md += &row("no cut", &result["without_cut"]);
