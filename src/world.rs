@@ -233,7 +233,15 @@ impl BodySolver {
                 }
                 _ => m.rebuild(body, dt),
             },
-            BodySolver::Implicit(i) => i.resize(body),
+            BodySolver::Implicit(i) => match cutter {
+                // A cut or a tear appends nodes: the warm start is kept.
+                Some(Cutter { changes, .. })
+                    if changes.covers(i.synced_version(), body.topology_version) =>
+                {
+                    i.follow(body)
+                }
+                _ => i.resize(body),
+            },
         }
     }
 }
@@ -1347,6 +1355,14 @@ impl World {
     /// the explicit limit).
     pub fn rigid_stepped_implicitly(&self, body: usize) -> bool {
         matches!(self.solvers.get(body), Some(BodySolver::Multirate(m)) if m.rigid_implicit)
+    }
+
+    /// The implicit solver of body `b`, if it has one.
+    pub fn implicit(&self, b: usize) -> Option<&Implicit> {
+        match self.solvers.get(b) {
+            Some(BodySolver::Implicit(i)) => Some(i),
+            _ => None,
+        }
     }
 
     /// Iterations and relative residual of the last implicit solve of a body.

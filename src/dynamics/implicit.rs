@@ -68,6 +68,10 @@ pub struct Implicit {
     rotation_block_inverse: Matrix3<f64>,
     /// Inverse of the matrix restricted to the rigid modes, when it is invertible.
     coarse_inverse: Option<Matrix6<f64>>,
+    /// The body's topology version the scratch is sized for.
+    synced_version: u64,
+    /// Topology changes followed keeping the warm start (nodes appended by a cut or a tear).
+    pub follows: u64,
     /// Iterations of the last solve.
     pub last_iterations: u32,
     /// Relative residual of the last solve.
@@ -105,6 +109,8 @@ impl Implicit {
             translation_block_inverse: 0.0,
             rotation_block_inverse: Matrix3::zeros(),
             coarse_inverse: None,
+            synced_version: 0,
+            follows: 0,
             last_iterations: 0,
             last_residual: 0.0,
         };
@@ -115,6 +121,7 @@ impl Implicit {
     /// Sizes the scratch to the body's nodes and edges (after a subdivision or a coarsening). The
     /// warm start of the solver restarts from zero.
     pub fn resize(&mut self, body: &Body) {
+        self.synced_version = body.topology_version;
         let n = body.node_count() + 2;
         let m = body.edges.len();
         self.u.clear();
@@ -141,6 +148,58 @@ impl Implicit {
         }
         self.pinned.clear();
         self.pinned.resize(n - 2, false);
+    }
+
+    /// The body's topology version the scratch is sized for.
+    pub fn synced_version(&self) -> u64 {
+        self.synced_version
+    }
+
+    /// Sizes the scratch to the body after a change that only appended nodes and springs (a cut or
+    /// a tear: every node keeps its index), keeping the warm start: the last Δu of the nodes that
+    /// were there and of the rigid component (moved to its new rows), zero for the new nodes. Every
+    /// other buffer is written in full before it is read in a step, so it is only resized (no pass
+    /// over it). A body with fewer nodes than before is sized afresh by [`Implicit::resize`].
+    pub fn follow(&mut self, body: &Body) {
+        let before = self.pinned.len();
+        let n = body.node_count();
+        if n < before || self.dv.len() != before + 2 {
+            self.resize(body);
+            return;
+        }
+        self.synced_version = body.topology_version;
+        self.follows += 1;
+        let m = body.edges.len();
+        self.u.resize(m, Vec3::zeros());
+        self.tangent.resize(m, 0.0);
+        self.axial.resize(m, 0.0);
+        self.diagonal.resize(n + 2, 0.0);
+        for buffer in [
+            &mut self.preconditioner,
+            &mut self.rhs,
+            &mut self.dv,
+            &mut self.r,
+            &mut self.z,
+            &mut self.p,
+            &mut self.ap,
+            &mut self.start_velocity,
+            &mut self.solved_velocity,
+        ] {
+            buffer.resize(n + 2, Vec3::zeros());
+        }
+        self.pinned.resize(n, false);
+        let rigid = [self.dv[before], self.dv[before + 1]];
+        for dv in &mut self.dv[before..n] {
+            *dv = Vec3::zeros();
+        }
+        self.dv[n] = rigid[0];
+        self.dv[n + 1] = rigid[1];
+    }
+
+    /// The warm start: the last Δu of every node, then of the rigid component's translation and
+    /// rotation.
+    pub fn warm_start(&self) -> &[Vec3] {
+        &self.dv
     }
 
     /// y += (scale_k K + scale_c C) x over the edges.
