@@ -222,7 +222,7 @@ impl BodySolver {
                     index: Some(index),
                     ..
                 }) if changes.covers(m.synced_version(), body.topology_version) => {
-                    m.follow(body, dt, changes.nodes(), &mut |v, out| {
+                    m.follow(body, dt, changes.nodes(), changes.edges(), &mut |v, out| {
                         if !index.incident_edges(body, v) || index.found.len() > out.capacity() {
                             return false;
                         }

@@ -99,6 +99,17 @@ pub struct Multirate {
     start: Vec<u32>,
     neighbour: Vec<u32>,
     edge: Vec<u32>,
+    /// The fast list and neighbour lists [`Multirate::follow`] builds beside the current ones
+    /// (swapped in when done).
+    fast_spare: Vec<u32>,
+    start_spare: Vec<u32>,
+    neighbour_spare: Vec<u32>,
+    edge_spare: Vec<u32>,
+    /// The nodes whose row may have changed: the changed ones and the ends of the changed springs.
+    dirty: Vec<u32>,
+    /// Followed changes whose classification was made again at the changed nodes' rows only (the
+    /// rigid component not sub-stepped).
+    pub far_classifications: u64,
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     f: Vec<Vec3>,
@@ -160,6 +171,12 @@ impl Multirate {
             start: Vec::with_capacity(n + 1),
             neighbour: Vec::with_capacity(2 * m),
             edge: Vec::with_capacity(2 * m),
+            fast_spare: Vec::with_capacity(n),
+            start_spare: Vec::with_capacity(n + 1),
+            neighbour_spare: Vec::with_capacity(2 * m),
+            edge_spare: Vec::with_capacity(2 * m),
+            dirty: Vec::with_capacity(n + 1),
+            far_classifications: 0,
             x: Vec::with_capacity(n),
             v: Vec::with_capacity(n),
             f: Vec::with_capacity(n),
@@ -285,7 +302,8 @@ impl Multirate {
 
     /// Follows a change of the body's topology where it happened instead of passing over the mesh:
     /// `changed` (in increasing order) holds every node whose mass, link, air damping or springs
-    /// changed, and every new node; `incident(v, out)` puts node `v`'s springs into `out` in index
+    /// changed, and every new node, `edges` every spring rewritten or added (a node at its end may
+    /// have a new neighbour on it); `incident(v, out)` puts node `v`'s springs into `out` in index
     /// order (false when it cannot). Only those nodes' bounds and levels are computed again — the
     /// same sums in the same order as [`Multirate::rebuild`], so the same classification; when a
     /// node cannot be followed so, the rebuild is made instead. Allocation-free.
@@ -294,6 +312,7 @@ impl Multirate {
         body: &Body,
         dt: f64,
         changed: &[u32],
+        edges: &[u32],
         incident: &mut dyn FnMut(u32, &mut Vec<u32>) -> bool,
     ) {
         let s = &body.surface;
@@ -342,6 +361,8 @@ impl Multirate {
         self.follows += 1;
         if self.classify_near(body, dt, changed, before, incident) {
             self.near_classifications += 1;
+        } else if self.classify_far(body, dt, changed, edges, before, incident) {
+            self.far_classifications += 1;
         } else {
             self.classify(body, dt);
         }
@@ -503,6 +524,135 @@ impl Multirate {
             self.start.push(self.neighbour.len() as u32);
         }
         self.size_scratch(n);
+        true
+    }
+
+    /// [`Multirate::classify`] where only the nodes `changed` (increasing; the new nodes from
+    /// `before` among them) changed level or springs and the springs `edges` changed, for a body
+    /// whose rigid component is not sub-stepped before and after: the fast nodes are those of a
+    /// level above 0, in index order, each with its row of springs; the rows of the fast nodes
+    /// neither changed nor at an end of a changed spring are copied, the others made from
+    /// `incident`. Returns false, having changed nothing the full
+    /// classification does not make again, when that does not apply.
+    fn classify_far(
+        &mut self,
+        body: &Body,
+        dt: f64,
+        changed: &[u32],
+        edges: &[u32],
+        before: usize,
+        incident: &mut dyn FnMut(u32, &mut Vec<u32>) -> bool,
+    ) -> bool {
+        let n = body.surface.mass.len();
+        let level_max = self.own_level_max();
+        let rigid_level = self.rigid_level_for(body, dt, level_max);
+        if self.rigid_substepped
+            || changed.len() + 2 * edges.len() > self.dirty.capacity()
+            || (rigid_level > 0 && level_max > 0)
+            || self.level.len() != before
+            || self.start.len() != self.fast.len() + 1
+            || n > self.fast_spare.capacity()
+            || n >= self.start_spare.capacity()
+        {
+            return false;
+        }
+        let e = &body.edges;
+        self.dirty.clear();
+        self.dirty.extend_from_slice(changed);
+        for &k in edges {
+            self.dirty.push(e.a[k as usize]);
+            self.dirty.push(e.b[k as usize]);
+        }
+        self.dirty.sort_unstable();
+        self.dirty.dedup();
+        let dirty = std::mem::take(&mut self.dirty);
+        let merged = self.merge_rows(e, &dirty, incident);
+        self.dirty = dirty;
+        if !merged {
+            return false;
+        }
+        self.rigid_level = rigid_level;
+        self.rigid_implicit = rigid_level > 0 && level_max == 0;
+        self.base_stride = 1;
+        self.substeps = 1 << level_max;
+        self.level.resize(n, 0);
+        for &v in changed {
+            self.level[v as usize] = self.own_level[v as usize];
+        }
+        // The old fast nodes' places forgotten, the new ones set (a node's row is its place).
+        self.local.resize(n, u32::MAX);
+        self.row.resize(n, u32::MAX);
+        for &i in &self.fast {
+            self.local[i as usize] = u32::MAX;
+            self.row[i as usize] = u32::MAX;
+        }
+        std::mem::swap(&mut self.fast, &mut self.fast_spare);
+        std::mem::swap(&mut self.start, &mut self.start_spare);
+        std::mem::swap(&mut self.neighbour, &mut self.neighbour_spare);
+        std::mem::swap(&mut self.edge, &mut self.edge_spare);
+        for (r, &i) in self.fast.iter().enumerate() {
+            self.local[i as usize] = r as u32;
+            self.row[i as usize] = r as u32;
+        }
+        self.size_scratch(n);
+        true
+    }
+
+    /// The fast list and rows into the spares, merged in index order from the old fast nodes not
+    /// in `dirty` (row copied) and the `dirty` ones of a level above 0 (row from `incident`);
+    /// false when the room or the index fails.
+    fn merge_rows(
+        &mut self,
+        e: &crate::body::Edges,
+        dirty: &[u32],
+        incident: &mut dyn FnMut(u32, &mut Vec<u32>) -> bool,
+    ) -> bool {
+        self.fast_spare.clear();
+        self.start_spare.clear();
+        self.start_spare.push(0);
+        self.neighbour_spare.clear();
+        self.edge_spare.clear();
+        let (mut k, mut c) = (0, 0);
+        loop {
+            let old = self.fast.get(k).copied();
+            let next = dirty.get(c).copied();
+            if let Some(i) = old.filter(|&i| next.is_none_or(|v| i < v)) {
+                let (a, b) = (self.start[k] as usize, self.start[k + 1] as usize);
+                if self.neighbour_spare.len() + (b - a) > self.neighbour_spare.capacity() {
+                    return false;
+                }
+                self.neighbour_spare
+                    .extend_from_slice(&self.neighbour[a..b]);
+                self.edge_spare.extend_from_slice(&self.edge[a..b]);
+                self.fast_spare.push(i);
+                self.start_spare.push(self.neighbour_spare.len() as u32);
+                k += 1;
+                continue;
+            }
+            let Some(v) = next else {
+                break;
+            };
+            if old == Some(v) {
+                k += 1;
+            }
+            c += 1;
+            if self.own_level[v as usize] == 0 {
+                continue;
+            }
+            if !incident(v, &mut self.incident)
+                || self.neighbour_spare.len() + self.incident.len()
+                    > self.neighbour_spare.capacity()
+            {
+                return false;
+            }
+            for &s in &self.incident {
+                let (a, b) = (e.a[s as usize], e.b[s as usize]);
+                self.neighbour_spare.push(if a == v { b } else { a });
+                self.edge_spare.push(s);
+            }
+            self.fast_spare.push(v);
+            self.start_spare.push(self.neighbour_spare.len() as u32);
+        }
         true
     }
 
