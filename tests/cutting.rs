@@ -730,6 +730,7 @@ fn random_blade_sessions_keep_every_invariant() {
     let (mut cut_sessions, mut pieces, mut followed_sessions) = (0, 0, 0);
     let mut quality = [[0u64; 4]; 2];
     let mut dropped = 0;
+    let mut on_path = 0;
     for session in 0..sessions {
         let subdivisions = 2 + session % 2;
         let fixed = session % 3 == 0;
@@ -851,6 +852,7 @@ script = [
             quality[class][1] += c.counters.quality_misses;
             quality[class][2] += c.counters.quality_inherited;
             dropped += c.counters.quality_splits_dropped;
+            on_path += c.counters.quality_splits_on_path;
         }
         quality[class][3] += world.guards.iter().map(|g| g.events).sum::<u64>();
         pieces += world.bodies.len() - 1;
@@ -867,7 +869,7 @@ script = [
     println!(
         "{cut_sessions} of {sessions} sessions cut, {pieces} pieces; {followed_sessions} multi-rate \
          sessions whose solver followed cuts from their record (classification checked every \
-         cutting tick); {dropped} splits made for quality taken back"
+         cutting tick); {dropped} splits made for quality taken back, {on_path} led the path"
     );
     assert!(
         followed_sessions > 0,

@@ -69,6 +69,9 @@ pub struct CutCounters {
     /// Splits made for quality taken back before the step applied them (the path crossing that
     /// called for one snapped since, and it only divided a corner).
     pub quality_splits_dropped: u64,
+    /// Splits made for quality the path was led through (a path leaving a corner close along one
+    /// of its sides goes along it to the split and on).
+    pub quality_splits_on_path: u64,
     /// Transections of this body (it separated into bodies).
     pub transections: u64,
     /// Caps closing the openings of transections.
@@ -758,6 +761,9 @@ impl Cutter {
             self.number_splits(body);
             self.collect_affected(body, tool, stamp, &quad);
         }
+        // A path leaving a corner close along one of its edges, with a quality split on that edge
+        // near the blade: the path goes through the split instead.
+        self.promote_quality_splits(body, &quad);
         // Room: nodes for splits and copies, triangles and edges for the templates and lips.
         let splits = self
             .crossings
@@ -1503,6 +1509,127 @@ impl Cutter {
                 self.best_template_quality(body, t) - floor
             })
             .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The template of affected triangle `a` with path `(p, q)`: the smallest angle of the better
+    /// diagonal that holds the path, and that diagonal (`None` when neither does).
+    fn template_keeping(&self, body: &Body, a: &Affected, p: u32, q: u32) -> Option<(f64, bool)> {
+        let splits = a.crossing.map(|c| {
+            c.and_then(|c| {
+                let c = &self.crossings[c as usize];
+                matches!(c.choice, Choice::Split).then_some(c.node)
+            })
+        });
+        [true, false]
+            .into_iter()
+            .filter(|&d| edge_in_template(a.corners, splits, d, p, q))
+            .map(|d| (self.template_quality(body, a.corners, splits, d), d))
+            .fold(None, |best: Option<(f64, bool)>, (q, d)| match best {
+                Some((b, _)) if b >= q => best,
+                _ => Some((q, d)),
+            })
+    }
+
+    /// Where a triangle's path runs from a corner `p` to a split `q` on the opposite side so close
+    /// along a side of `p` that its template stays below its floor, and a split made for quality
+    /// sits on that side within ¾ of the tolerance of the sweep, the path goes from `p` along the
+    /// side to that split and on to `q` (the triangle across the side, which had no path, takes the
+    /// first leg) when that raises the smallest margin of the two triangles over their floors.
+    fn promote_quality_splits(&mut self, body: &Body, quad: &[Vec3; 4]) {
+        let h = &body.surface.homologue_in_body;
+        let floor_of = |a: &Affected| {
+            self.quality_bound_deg
+                .min(min_angle_deg(&a.corners.map(|v| h[v as usize])))
+        };
+        for i in 0..self.affected.len() {
+            let t = self.affected[i];
+            let Some((u, w)) = t.path else {
+                continue;
+            };
+            // p a corner of the triangle, q a split on the opposite side.
+            let (p, q) = if t.corners.contains(&u) {
+                (u, w)
+            } else {
+                (w, u)
+            };
+            if !t.corners.contains(&p) || t.corners.contains(&q) {
+                continue;
+            }
+            let floor_t = floor_of(&t);
+            let Some((old_t, _)) = self.template_keeping(body, &t, p, q) else {
+                continue;
+            };
+            if old_t >= floor_t {
+                continue;
+            }
+            for side in 0..3 {
+                let Some(cs) = t.crossing[side] else {
+                    continue;
+                };
+                let (a, b) = (t.corners[side], t.corners[(side + 1) % 3]);
+                let crossing = self.crossings[cs as usize];
+                if (a != p && b != p)
+                    || crossing.on_path
+                    || !matches!(crossing.choice, Choice::Split)
+                {
+                    continue;
+                }
+                // Near the sweep: in the world, or in rest coordinates from the segment between
+                // the path's two points (which lies in the swept surface as the rest shape maps
+                // it, to within their own distance from it: half the tolerance is left for that).
+                let x = &body.surface.position_in_world;
+                let at = x[crossing.a as usize] * (1.0 - crossing.t)
+                    + x[crossing.b as usize] * crossing.t;
+                let tol = self.tolerance(body.edges.rest_length[crossing.edge as usize]);
+                let (rp, rq, rs) = (
+                    self.rest_of(body, p),
+                    self.rest_of(body, q),
+                    self.rest_of(body, crossing.node),
+                );
+                let along =
+                    (rq - rp).dot(&(rs - rp)) / (rq - rp).norm_squared().max(f64::MIN_POSITIVE);
+                let from_path = (rs - (rp + (rq - rp) * along.clamp(0.0, 1.0))).norm();
+                if quad_distance(&at, quad) > 0.75 * tol && from_path > 0.5 * tol {
+                    continue;
+                }
+                let Some(j) = (0..self.affected.len())
+                    .find(|&j| j != i && self.affected[j].crossing.contains(&Some(cs)))
+                else {
+                    continue;
+                };
+                let n = self.affected[j];
+                if n.path.is_some() {
+                    continue;
+                }
+                let floor_n = floor_of(&n);
+                let splits_n = n.crossing.map(|c| {
+                    c.and_then(|c| {
+                        let c = &self.crossings[c as usize];
+                        matches!(c.choice, Choice::Split).then_some(c.node)
+                    })
+                });
+                let old_n = self.template_quality(body, n.corners, splits_n, n.diagonal_from_first);
+                let sn = crossing.node;
+                let (Some((new_t, dt)), Some((new_n, dn))) = (
+                    self.template_keeping(body, &t, sn, q),
+                    self.template_keeping(body, &n, p, sn),
+                ) else {
+                    continue;
+                };
+                let before = (old_t - floor_t).min(old_n - floor_n);
+                let after = (new_t - floor_t).min(new_n - floor_n);
+                if after <= before + 1e-9 {
+                    continue;
+                }
+                self.crossings[cs as usize].on_path = true;
+                self.affected[i].path = Some((sn.min(q), sn.max(q)));
+                self.affected[i].diagonal_from_first = dt;
+                self.affected[j].path = Some((p.min(sn), p.max(sn)));
+                self.affected[j].diagonal_from_first = dn;
+                self.counters.quality_splits_on_path += 1;
+                break;
+            }
+        }
     }
 
     /// Removes the first split made for quality (off the path) whose triangles' best templates
