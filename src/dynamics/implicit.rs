@@ -132,7 +132,17 @@ impl Implicit {
         }
         self.diagonal.clear();
         self.diagonal.resize(n, 0.0);
-        for buffer in [
+        for buffer in self.node_buffers() {
+            buffer.clear();
+            buffer.resize(n, Vec3::zeros());
+        }
+        self.pinned.clear();
+        self.pinned.resize(n - 2, false);
+    }
+
+    /// The buffers with one vector per node, then the rigid component's two.
+    fn node_buffers(&mut self) -> [&mut Vec<Vec3>; 9] {
+        [
             &mut self.preconditioner,
             &mut self.rhs,
             &mut self.dv,
@@ -142,12 +152,7 @@ impl Implicit {
             &mut self.ap,
             &mut self.start_velocity,
             &mut self.solved_velocity,
-        ] {
-            buffer.clear();
-            buffer.resize(n, Vec3::zeros());
-        }
-        self.pinned.clear();
-        self.pinned.resize(n - 2, false);
+        ]
     }
 
     /// The body's topology version the scratch is sized for.
@@ -174,17 +179,7 @@ impl Implicit {
         self.tangent.resize(m, 0.0);
         self.axial.resize(m, 0.0);
         self.diagonal.resize(n + 2, 0.0);
-        for buffer in [
-            &mut self.preconditioner,
-            &mut self.rhs,
-            &mut self.dv,
-            &mut self.r,
-            &mut self.z,
-            &mut self.p,
-            &mut self.ap,
-            &mut self.start_velocity,
-            &mut self.solved_velocity,
-        ] {
+        for buffer in self.node_buffers() {
             buffer.resize(n + 2, Vec3::zeros());
         }
         self.pinned.resize(n, false);
