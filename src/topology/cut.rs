@@ -1099,6 +1099,23 @@ impl Cutter {
         }
     }
 
+    /// The split nodes of a triangle's crossings (`None` where a side has no crossing or a snap).
+    fn splits_of(&self, crossing: [Option<u16>; 3]) -> [Option<u32>; 3] {
+        crossing.map(|c| {
+            c.and_then(|c| {
+                let c = &self.crossings[c as usize];
+                matches!(c.choice, Choice::Split).then_some(c.node)
+            })
+        })
+    }
+
+    /// A triangle's quality floor: the bound, or its own smallest angle when that is below it.
+    fn floor_of(&self, body: &Body, corners: [u32; 3]) -> f64 {
+        let h = &body.surface.homologue_in_body;
+        self.quality_bound_deg
+            .min(min_angle_deg(&corners.map(|v| h[v as usize])))
+    }
+
     fn rest_of(&self, body: &Body, v: u32) -> Vec3 {
         let n = body.node_count() as u32;
         if v < n {
@@ -1337,12 +1354,7 @@ impl Cutter {
 
     /// The smallest angle of the best template of affected triangle `a` that keeps its path.
     fn best_template_quality(&self, body: &Body, a: &Affected) -> f64 {
-        let splits = a.crossing.map(|c| {
-            c.and_then(|c| {
-                let c = &self.crossings[c as usize];
-                matches!(c.choice, Choice::Split).then_some(c.node)
-            })
-        });
+        let splits = self.splits_of(a.crossing);
         [true, false]
             .map(|d| {
                 let keeps = a
@@ -1498,14 +1510,11 @@ impl Cutter {
     /// The smallest margin of the best templates of the affected triangles round crossing `c` over
     /// their quality floors (the bound, or a parent's smallest angle below it).
     fn margin_round(&self, body: &Body, c: usize) -> f64 {
-        let h = &body.surface.homologue_in_body;
         self.affected
             .iter()
             .filter(|t| t.crossing.contains(&Some(c as u16)))
             .map(|t| {
-                let floor = self
-                    .quality_bound_deg
-                    .min(min_angle_deg(&t.corners.map(|v| h[v as usize])));
+                let floor = self.floor_of(body, t.corners);
                 self.best_template_quality(body, t) - floor
             })
             .fold(f64::INFINITY, f64::min)
@@ -1514,12 +1523,7 @@ impl Cutter {
     /// The template of affected triangle `a` with path `(p, q)`: the smallest angle of the better
     /// diagonal that holds the path, and that diagonal (`None` when neither does).
     fn template_keeping(&self, body: &Body, a: &Affected, p: u32, q: u32) -> Option<(f64, bool)> {
-        let splits = a.crossing.map(|c| {
-            c.and_then(|c| {
-                let c = &self.crossings[c as usize];
-                matches!(c.choice, Choice::Split).then_some(c.node)
-            })
-        });
+        let splits = self.splits_of(a.crossing);
         [true, false]
             .into_iter()
             .filter(|&d| edge_in_template(a.corners, splits, d, p, q))
@@ -1536,11 +1540,6 @@ impl Cutter {
     /// side to that split and on to `q` (the triangle across the side, which had no path, takes the
     /// first leg) when that raises the smallest margin of the two triangles over their floors.
     fn promote_quality_splits(&mut self, body: &Body, quad: &[Vec3; 4]) {
-        let h = &body.surface.homologue_in_body;
-        let floor_of = |a: &Affected| {
-            self.quality_bound_deg
-                .min(min_angle_deg(&a.corners.map(|v| h[v as usize])))
-        };
         for i in 0..self.affected.len() {
             let t = self.affected[i];
             let Some((u, w)) = t.path else {
@@ -1555,7 +1554,7 @@ impl Cutter {
             if !t.corners.contains(&p) || t.corners.contains(&q) {
                 continue;
             }
-            let floor_t = floor_of(&t);
+            let floor_t = self.floor_of(body, t.corners);
             let Some((old_t, _)) = self.template_keeping(body, &t, p, q) else {
                 continue;
             };
@@ -1601,13 +1600,8 @@ impl Cutter {
                 if n.path.is_some() {
                     continue;
                 }
-                let floor_n = floor_of(&n);
-                let splits_n = n.crossing.map(|c| {
-                    c.and_then(|c| {
-                        let c = &self.crossings[c as usize];
-                        matches!(c.choice, Choice::Split).then_some(c.node)
-                    })
-                });
+                let floor_n = self.floor_of(body, n.corners);
+                let splits_n = self.splits_of(n.crossing);
                 let old_n = self.template_quality(body, n.corners, splits_n, n.diagonal_from_first);
                 let sn = crossing.node;
                 let (Some((new_t, dt)), Some((new_n, dn))) = (
@@ -1663,12 +1657,7 @@ impl Cutter {
         let mut added = false;
         for i in 0..self.affected.len() {
             let a = self.affected[i];
-            let splits = a.crossing.map(|c| {
-                c.and_then(|c| {
-                    let c = &self.crossings[c as usize];
-                    matches!(c.choice, Choice::Split).then_some(c.node)
-                })
-            });
+            let splits = self.splits_of(a.crossing);
             let count = splits.iter().filter(|s| s.is_some()).count();
             if count == 0 || count == 3 {
                 continue;
@@ -1819,12 +1808,7 @@ impl Cutter {
 
     /// Replaces an affected triangle by its template children and adds their inner edges.
     fn apply_template(&mut self, body: &mut Body, a: &Affected, prestress: f64) {
-        let splits = a.crossing.map(|c| {
-            c.and_then(|c| {
-                let c = &self.crossings[c as usize];
-                matches!(c.choice, Choice::Split).then_some(c.node)
-            })
-        });
+        let splits = self.splits_of(a.crossing);
         if splits.iter().all(Option::is_none) {
             return;
         }
@@ -1837,10 +1821,7 @@ impl Cutter {
             &mut children,
             &mut inner,
         );
-        let h = &body.surface.homologue_in_body;
-        let floor = self
-            .quality_bound_deg
-            .min(min_angle_deg(&a.corners.map(|v| h[v as usize])));
+        let floor = self.floor_of(body, a.corners);
         let triangles = &mut body.surface.triangles;
         triangles[a.triangle as usize] = children[0];
         self.created.push((a.triangle, floor));
