@@ -31,6 +31,7 @@ use crate::tool::ToolShape;
 use crate::tool::{Feedback, Tool};
 use crate::topology::Cutter;
 use crate::topology::cut::NodeExtent;
+use crate::topology::explicit::finest_step;
 use crate::topology::refine::Refinement;
 
 /// Scales a tool's feedback force down to its `max_force`, flagging it.
@@ -186,7 +187,9 @@ struct Spare {
 /// The integrator of one body with its scratch memory.
 #[derive(Clone, Debug)]
 enum BodySolver {
-    Symplectic,
+    /// The paper's scheme; on a body that cuts or tears, with a multi-rate solver reserved for its
+    /// first topology change (see [`BodySolver::cut_made`]).
+    Symplectic(Option<Box<Multirate>>),
     Multirate(Box<Multirate>),
     Implicit(Box<Implicit>),
 }
@@ -195,7 +198,11 @@ enum BodySolver {
 fn solver_for(body: &Body, world_integrator: Integrator, dt: f64) -> BodySolver {
     let room = body.room_nodes();
     match body.params.integrator.unwrap_or(world_integrator) {
-        Integrator::Symplectic => BodySolver::Symplectic,
+        Integrator::Symplectic => BodySolver::Symplectic(
+            body.params
+                .topology_cutter()
+                .map(|_| Box::new(Multirate::with_room(body, dt, room))),
+        ),
         Integrator::Multirate => {
             BodySolver::Multirate(Box::new(Multirate::with_room(body, dt, room)))
         }
@@ -210,12 +217,36 @@ impl BodySolver {
         matches!(self, BodySolver::Multirate(m) if m.rigid_substepped)
     }
 
+    /// The body is (or from its first cut on will be) stepped by the multi-rate solver: its nodes
+    /// must be no lighter than the finest sub-step carries (see [`crate::topology::explicit`]).
+    fn sub_steps(&self) -> bool {
+        matches!(
+            self,
+            BodySolver::Multirate(_) | BodySolver::Symplectic(Some(_))
+        )
+    }
+
+    /// A cut or a tear made light nodes and short, stiff spring pieces that the plain explicit
+    /// scheme does not carry at the step (ω Δt past its limit: a copy keeps only a share of its
+    /// origin's mass, a spring cut near an end is k/t stiff). From its first cut on, a symplectic
+    /// body is stepped by the multi-rate solver reserved for it: every node within the limit is
+    /// stepped exactly as the symplectic scheme steps it (the same bits), the others are
+    /// sub-stepped (MODEL.md §7). No allocation: the solver was reserved at setup.
+    fn cut_made(&mut self, body: &Body, dt: f64) {
+        if let BodySolver::Symplectic(reserve) = self
+            && let Some(mut multirate) = reserve.take()
+        {
+            multirate.rebuild(body, dt);
+            *self = BodySolver::Multirate(multirate);
+        }
+    }
+
     /// Follows a change of the body's topology (allocation-free within the reserved room): where
     /// the cutter's record covers it, only at the nodes it lists (their springs from its rest-frame
     /// index).
     fn topology_changed(&mut self, body: &Body, dt: f64, cutter: Option<&mut Cutter>) {
         match self {
-            BodySolver::Symplectic => {}
+            BodySolver::Symplectic(_) => {}
             BodySolver::Multirate(m) => match cutter {
                 Some(Cutter {
                     changes,
@@ -604,7 +635,7 @@ impl World {
                 // A body stepped explicitly past its stability limit can gain energy within a tick
                 // without moving fast: the energy of the end of each step is checked. Every other
                 // body's is checked every tick from the force stage's measure, one tick behind.
-                if matches!(solver, BodySolver::Symplectic) {
+                if matches!(solver, BodySolver::Symplectic(_)) {
                     let margin = symplectic_margin(b, dt);
                     guard.energy_at_end = margin.margin < 0.0 || margin.rigid_margin < 0.0;
                 }
@@ -728,6 +759,11 @@ impl World {
         cutter.renumbered();
         // Not known until the next parts search (renumbered, capped).
         cutter.connected = false;
+        // The caps took their mass from the rims and added springs there.
+        if self.solvers[b].sub_steps() {
+            cutter.hold_least_mass_everywhere(body, finest_step(dt));
+        }
+        self.solvers[b].cut_made(body, dt);
         self.solvers[b].topology_changed(body, dt, None);
         self.kernels[b].invalidate();
         self.broad[b].held.invalidate();
@@ -749,13 +785,17 @@ impl World {
                 spare.body.name.clear();
                 let _ = write!(spare.body.name, "{}.{}", parent_name, self.pieces_named[b]);
             }
-            spare.solver.topology_changed(&spare.body, dt, None);
-            if let Some(refinement) = spare.refinement.as_mut() {
-                refinement.renumbered(&spare.body);
-            }
             if let Some(cutter) = spare.cutter.as_mut() {
                 cutter.restart();
                 cutter.changed_at = tick;
+                if spare.solver.sub_steps() {
+                    cutter.hold_least_mass_everywhere(&mut spare.body, finest_step(dt));
+                }
+            }
+            spare.solver.cut_made(&spare.body, dt);
+            spare.solver.topology_changed(&spare.body, dt, None);
+            if let Some(refinement) = spare.refinement.as_mut() {
+                refinement.renumbered(&spare.body);
             }
             let mut guard = Guard::new(&spare.body, &gravity);
             guard.energy_at_end = energy_at_end;
@@ -781,13 +821,13 @@ impl World {
             kernel.set_simd(simd);
         }
         for solver in &mut self.solvers {
-            if let BodySolver::Multirate(m) = solver {
+            if let BodySolver::Multirate(m) | BodySolver::Symplectic(Some(m)) = solver {
                 m.set_simd(simd);
             }
         }
         for spare in self.spares.iter_mut().flatten() {
             spare.kernel.set_simd(simd);
-            if let BodySolver::Multirate(m) = &mut spare.solver {
+            if let BodySolver::Multirate(m) | BodySolver::Symplectic(Some(m)) = &mut spare.solver {
                 m.set_simd(simd);
             }
         }
@@ -969,7 +1009,7 @@ impl World {
             // pass; the held nodes keep their start velocity for the contact stage, which moves
             // them. The others are integrated by their solver.
             let fused = match solver {
-                BodySolver::Symplectic => true,
+                BodySolver::Symplectic(_) => true,
                 BodySolver::Multirate(m) => m.fast.is_empty() && !m.rigid_substepped,
                 BodySolver::Implicit(_) => false,
             };
@@ -999,7 +1039,7 @@ impl World {
             }
             clock.enter(Stage::Integration);
             match solver {
-                BodySolver::Symplectic => {}
+                BodySolver::Symplectic(_) => {}
                 BodySolver::Multirate(m) => {
                     counters.obstacle_contacts += m.integrate(
                         body,
@@ -1193,6 +1233,11 @@ impl World {
                     if let Some(refinement) = refinement.as_mut() {
                         refinement.commit(body);
                     }
+                    // No node lighter than the finest sub-step of the multi-rate scheme carries.
+                    if solver.sub_steps() {
+                        cutter.hold_least_mass(body, finest_step(dt));
+                    }
+                    solver.cut_made(body, dt);
                     solver.topology_changed(body, dt, Some(cutter));
                     // The tools' held nodes, from the same record.
                     broad

@@ -35,6 +35,7 @@
 //! node). Everything works in fixed scratch sized when the cutter is built: a cut step allocates
 //! nothing, and refuses (and counts) a step the body's reserved room cannot take.
 
+use super::explicit::MassMover;
 use super::refine::min_angle_deg;
 use super::rest_index::RestIndex;
 use super::transect::Transector;
@@ -299,6 +300,8 @@ pub struct Cutter {
     pub connected: bool,
     /// Scratch of the search that joins a copy to its origin.
     queue: Vec<u32>,
+    /// Mass moves that give the changed nodes the least mass their explicit scheme carries.
+    pub mass_mover: MassMover,
 }
 
 /// Distance from `p` to the swept quad (two triangles).
@@ -404,6 +407,35 @@ impl Cutter {
             nodes_at_start: 0,
             connected: false,
             queue: Vec::with_capacity(REJOIN_BUDGET + 1),
+            mass_mover: MassMover::with_capacity(capacity),
+        }
+    }
+
+    /// [`Cutter::hold_least_mass`] at every node of the body (after a transection). Returns the
+    /// nodes fed.
+    pub fn hold_least_mass_everywhere(&mut self, body: &mut Body, h: f64) -> u64 {
+        if !self.sync_index(body) {
+            self.mass_mover.counters.unchecked += body.node_count() as u64;
+            return 0;
+        }
+        match self.index.as_mut() {
+            Some(index) => self.mass_mover.hold_all(body, h, index),
+            None => 0,
+        }
+    }
+
+    /// Gives the nodes the tick's sealed record lists at least the mass semi-implicit Euler
+    /// carries at step `h`, moving mass to them from the nodes round them (see
+    /// [`super::explicit`]); the donors join the record. Returns the nodes fed.
+    pub fn hold_least_mass(&mut self, body: &mut Body, h: f64) -> u64 {
+        match self.index.as_mut() {
+            Some(index) if index.is_valid_for(body) => {
+                self.mass_mover.hold(body, h, &mut self.changes, index)
+            }
+            _ => {
+                self.mass_mover.counters.unchecked += self.changes.nodes().len() as u64;
+                0
+            }
         }
     }
 

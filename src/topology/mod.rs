@@ -25,6 +25,7 @@
 //! [`reserve_for_subdivision`] called first, neither operation allocates.
 
 pub mod cut;
+pub mod explicit;
 pub mod refine;
 pub mod rest_index;
 pub mod tear;
