@@ -703,8 +703,9 @@ impl World {
             return;
         };
         let body = &mut self.bodies[b];
-        // One part before, and every opening since joined its copies to their origins again.
-        if cutter.connected {
+        // One part before, and every opening since joined its copies to their origins again (or
+        // a separation of this body was refused: no search could end in one).
+        if cutter.connected || cutter.separation_refused {
             cutter.counters.parts_searches_spared += 1;
             return;
         }
@@ -714,8 +715,10 @@ impl World {
         {
             return;
         }
+        cutter.counters.parts_searches += 1;
         let parts = cutter.transector.find_parts(body);
         cutter.connected = parts == 1;
+        cutter.counters.parts_searches_one_part += u64::from(parts == 1);
         if parts < 2 {
             return;
         }
@@ -733,6 +736,11 @@ impl World {
         }
         if parts > MAX_PARTS || found + 1 < parts {
             counters.transections_refused += 1;
+            // Later openings only add parts, and spares do not come back: no later search of
+            // this body could end in a transection.
+            if let Some(cutter) = self.cutters[b].as_mut() {
+                cutter.separation_refused = true;
+            }
             return;
         }
         let mut taken: [Option<Spare>; MAX_PARTS] = Default::default();
@@ -757,8 +765,8 @@ impl World {
                 .map(|(k, index)| (if k == 0 { b } else { first_piece + k - 1 }, index))
         });
         cutter.renumbered();
-        // Not known until the next parts search (renumbered, capped).
-        cutter.connected = false;
+        // The part kept is one part of the spring graph (its caps only add springs within it).
+        cutter.connected = true;
         // The caps took their mass from the rims and added springs there.
         if self.solvers[b].sub_steps() {
             cutter.hold_least_mass_everywhere(body, finest_step(dt));
@@ -787,6 +795,8 @@ impl World {
             }
             if let Some(cutter) = spare.cutter.as_mut() {
                 cutter.restart();
+                // A piece is one part of the spring graph, as the part kept.
+                cutter.connected = true;
                 cutter.changed_at = tick;
                 if spare.solver.sub_steps() {
                     cutter.hold_least_mass_everywhere(&mut spare.body, finest_step(dt));

@@ -244,6 +244,38 @@ fn a_cut_moves_mass_to_nodes_lighter_than_their_scheme_carries() {
     assert!(cutter.mass_mover.counters.moved_kg > 0.0);
 }
 
+/// A long slit opened in one step (a blade swept 6 cm across an organ's top within one tick): the
+/// copies are too far round the slit's tips for the search round the cut, and are joined to their
+/// origins along the boundary loop of the slit instead, so no parts search (a pass over the body)
+/// is needed: the body is known to be one part, as a search over all its springs finds.
+#[test]
+fn a_long_slit_opened_at_once_is_joined_along_its_boundary_loop() {
+    use palpa::topology::transect::Transector;
+    let mesh = icosphere(0.05, 4);
+    let mut body = cutting_body(&mesh, 4096, false);
+    let mut cutter = Cutter::new(&body, CuttingSettings::default(), 1);
+    assert!(cutter.connected, "a whole sphere not known as one part");
+    let segment = |x: f64| [Vec3::new(x, 0.0013, 0.03), Vec3::new(x, 0.0013, 0.07)];
+    let step = cutter.cut(&mut body, 0, segment(-0.03), segment(0.03));
+    let c = &cutter.counters;
+    println!(
+        "one step: {} edges opened, {} copies; {} copies joined along a loop, {} openings not \
+         shown joined",
+        step.opened, step.copies, c.rejoins_by_loop, c.rejoins_failed
+    );
+    assert!(
+        step.opened >= 10,
+        "the slit is short: {} edges",
+        step.opened
+    );
+    assert!(c.rejoins_by_loop > 0, "no copy needed the loop");
+    assert_eq!(c.rejoins_failed, 0);
+    assert!(cutter.connected);
+    let (n, t) = (body.node_count(), body.surface.triangles.len());
+    let mut transector = Transector::with_capacity(n, t);
+    assert_eq!(transector.find_parts(&body), 1);
+}
+
 /// A blade's cutting segment for a random stroke on a mesh of radius about `r`: through random
 /// points, through vertices, along edges.
 fn random_stroke(rng: &mut Rng, body: &Body, r: f64) -> ([Vec3; 2], Vec3, usize) {
@@ -810,6 +842,9 @@ fn random_blade_sessions_keep_every_invariant() {
     let mut dropped = 0;
     let mut on_path = 0;
     let mut fed = 0;
+    // Parts searches made and spared, copies joined along a loop, steps not shown joined, searches
+    // that found one part.
+    let mut searches = [0u64; 5];
     for session in 0..sessions {
         let subdivisions = 2 + session % 2;
         let fixed = session % 3 == 0;
@@ -938,6 +973,11 @@ script = [
             quality[class][1] += c.counters.quality_misses;
             quality[class][2] += c.counters.quality_inherited;
             dropped += c.counters.quality_splits_dropped;
+            searches[0] += c.counters.parts_searches;
+            searches[1] += c.counters.parts_searches_spared;
+            searches[2] += c.counters.rejoins_by_loop;
+            searches[3] += c.counters.rejoins_failed;
+            searches[4] += c.counters.parts_searches_one_part;
             on_path += c.counters.quality_splits_on_path;
         }
         if cuts > 0 {
@@ -965,7 +1005,10 @@ script = [
         "{cut_sessions} of {sessions} sessions cut, {pieces} pieces; {followed_sessions} multi-rate \
          sessions whose solver followed cuts from their record (classification checked every \
          cutting tick); {dropped} splits made for quality taken back, {on_path} led the path; \
-         {fed} nodes given the least mass the finest sub-step carries"
+         {fed} nodes given the least mass the finest sub-step carries; parts searches: {} made \
+         ({} pieces; {} found one part), {} spared; {} copies joined along a loop, {} openings not \
+         shown joined",
+        searches[0], pieces, searches[4], searches[1], searches[2], searches[3]
     );
     assert!(
         followed_sessions > 0,

@@ -84,8 +84,20 @@ pub struct CutCounters {
     /// Blade steps that looked only at the springs near the blade (the rest-frame index).
     pub local_steps: u64,
     /// Parts searches spared: the body was one part and every copy since was joined to its
-    /// origin again by the search round the cut.
+    /// origin again by the search round the cut or along a boundary loop (or a separation of the
+    /// body was refused).
     pub parts_searches_spared: u64,
+    /// Parts searches made (a pass over the body's springs: after an opening whose copies could
+    /// not all be shown joined to their origins, and when the body did separate).
+    pub parts_searches: u64,
+    /// Parts searches that found the body one part (a pass the search round the cut and the
+    /// loop walk could not spare: a slit that closed a boundary loop of its own, say).
+    pub parts_searches_one_part: u64,
+    /// Copies joined to their origins along a boundary loop (the search round the cut gave up).
+    pub rejoins_by_loop: u64,
+    /// Steps whose copies could not all be shown joined to their origins (the parts search then
+    /// passes over the body).
+    pub rejoins_failed: u64,
     /// Blade steps that ended at the box of the nodes (the blade away from the body): no work.
     pub away_ticks: u64,
     /// Blade steps that passed over the body's nodes (the blade's box meets the nodes' box).
@@ -127,11 +139,35 @@ const FAN_ROOM: usize = 16 * MAX_CROSSINGS;
 /// Most nodes the search joining a step's copies to their origins visits before it gives up (and
 /// the parts search passes over the body).
 const REJOIN_BUDGET: usize = 512;
+/// Most boundary steps the walks along the loops through a step's copies take (more: the parts
+/// search passes over the body).
+const WALK_BUDGET: usize = 2048;
 
 #[derive(Clone, Copy, Debug)]
 enum Choice {
     Snap(u32),
     Split,
+}
+
+/// The next node along the boundary from `u`: the end `b` of the triangle side u→b that no triangle
+/// traverses b→u (the triangles round `u` from the index); `None` when `u` is not on the boundary.
+fn boundary_successor(index: &mut RestIndex, body: &Body, u: u32) -> Option<u32> {
+    let mark = index.begin();
+    let at = RestIndex::point(&body.surface.homologue_in_body[u as usize]);
+    index.collect_triangles(body, &at, mark, |_, t| t.contains(&u));
+    let triangles = &body.surface.triangles;
+    let after = |t: &[u32; 3], v: u32| {
+        let k = t.iter().position(|&x| x == v)?;
+        Some(t[(k + 1) % 3])
+    };
+    let found = &index.found;
+    found.iter().find_map(|&t| {
+        let b = after(&triangles[t as usize], u)?;
+        let twin = found
+            .iter()
+            .any(|&o| after(&triangles[o as usize], b) == Some(u));
+        (!twin).then_some(b)
+    })
 }
 
 /// How far back over the tick's motion a blade's swept quad reaches (see [`Cutter::cut`]).
@@ -289,6 +325,8 @@ pub struct Cutter {
     pub index: Option<RestIndex>,
     /// Nodes a step met (side codes), marked with the step's stamp.
     side_stamp: Vec<u32>,
+    /// Nodes a walk along a boundary loop met, marked with the walk's stamp.
+    loop_stamp: Vec<u32>,
     /// Scratch: the nodes of the path, each once.
     path_nodes: Vec<u32>,
     /// Scratch: the nodes whose stiffness and damping diagonals a step may have changed.
@@ -298,6 +336,9 @@ pub struct Cutter {
     /// The body is known to be one part (its springs join every node): a parts search found one,
     /// and every opening since joined each copy it made to its origin again.
     pub connected: bool,
+    /// A transection of this body was refused (more parts than [`super::transect::MAX_PARTS`] or
+    /// than spares left): the parts search is not made again.
+    pub separation_refused: bool,
     /// Scratch of the search that joins a copy to its origin.
     queue: Vec<u32>,
     /// Mass moves that give the changed nodes the least mass their explicit scheme carries.
@@ -353,7 +394,7 @@ impl Cutter {
     pub fn new(body: &Body, settings: CuttingSettings, tools: usize) -> Self {
         let capacity = body.mesh_capacity().0.max(body.node_count());
         let bound = settings.min_angle_deg.min(0.5 * smallest_angle_deg(body));
-        Self {
+        let mut cutter = Self {
             settings,
             changes: TopologyChanges::with_capacity(CHANGE_ROOM, CHANGE_ROOM),
             quality_bound_deg: bound,
@@ -402,13 +443,22 @@ impl Cutter {
                 RestIndex::with_capacity(triangles, edges)
             }),
             side_stamp: vec![0; capacity],
+            loop_stamp: vec![0; capacity],
             path_nodes: Vec::with_capacity(16 * MAX_CROSSINGS),
             touched: Vec::with_capacity(3 * MAX_CREATED + 16 * MAX_CROSSINGS),
             nodes_at_start: 0,
             connected: false,
+            separation_refused: false,
             queue: Vec::with_capacity(REJOIN_BUDGET + 1),
             mass_mover: MassMover::with_capacity(capacity),
+        };
+        // Whether the body is one part, known from the start (a pass at setup): its first opening
+        // needs no parts search when the search round the cut joins its copies again.
+        let (n, t) = (body.node_count(), body.surface.triangles.len());
+        if cutter.transector.fits(n, t) {
+            cutter.connected = cutter.transector.find_parts(body) == 1;
         }
+        cutter
     }
 
     /// [`Cutter::hold_least_mass`] at every node of the body (after a transection). Returns the
@@ -514,6 +564,7 @@ impl Cutter {
     pub fn restart(&mut self) {
         self.renumbered();
         self.connected = false;
+        self.separation_refused = false;
         self.counters = CutCounters::default();
         self.smallest_created_angle_deg = 180.0;
         self.through.fill(false);
@@ -527,6 +578,7 @@ impl Cutter {
             self.cut_stamp.iter_mut().for_each(|s| *s = 0);
             self.near_stamp.iter_mut().for_each(|s| *s = 0);
             self.side_stamp.iter_mut().for_each(|s| *s = 0);
+            self.loop_stamp.iter_mut().for_each(|s| *s = 0);
             self.stamp = 1;
         }
         self.stamp
@@ -903,13 +955,74 @@ impl Cutter {
         }
     }
 
-    /// Whether every copy this step made is joined to its origin by a path of springs, found by a
+    /// Whether every copy this step made is joined to its origin by a path of springs: found by a
     /// search from the copy over the springs the index lists at each node (at most
-    /// [`REJOIN_BUDGET`] nodes visited in all; false when it gives up or there is no index).
+    /// [`REJOIN_BUDGET`] nodes visited in all), or else along the boundary loop through the copy
+    /// (a copy lies on a lip; its origin, on the other lip of the same slit, is on the same loop
+    /// unless the slit closed a loop of its own) — each loop walked once, at most [`WALK_BUDGET`]
+    /// boundary steps in all. False when both give up or there is no index.
     fn copies_rejoined(&mut self, body: &Body) -> bool {
         let mut visits = 0usize;
+        let mut walked = 0usize;
+        let base = self.stamp.wrapping_add(1);
         for i in 0..self.copies.len() {
             let (start, goal) = (self.copies[i], self.copy_origin[i]);
+            if visits <= REJOIN_BUDGET && self.search_rejoins(body, start, goal, &mut visits) {
+                continue;
+            }
+            if !self.on_one_loop(body, start, goal, base, &mut walked) {
+                self.counters.rejoins_failed += 1;
+                return false;
+            }
+            self.counters.rejoins_by_loop += 1;
+        }
+        true
+    }
+
+    /// Whether `goal` lies on the boundary loop through `start` (walked now, its nodes marked with
+    /// the walk's stamp, unless a walk of this step — stamps from `base` on — marked `start`
+    /// already); `walked` counts the boundary steps of the step's walks.
+    fn on_one_loop(
+        &mut self,
+        body: &Body,
+        start: u32,
+        goal: u32,
+        base: u32,
+        walked: &mut usize,
+    ) -> bool {
+        let g = goal as usize;
+        // Walked already this step (stamps from `base` on): the goal is on it or not.
+        let mark = self.loop_stamp[start as usize];
+        if mark >= base {
+            return self.loop_stamp[g] == mark;
+        }
+        let stamp = self.next_stamp();
+        let Some(index) = self.index.as_mut().filter(|x| x.is_valid_for(body)) else {
+            return false;
+        };
+        let mut u = start;
+        loop {
+            self.loop_stamp[u as usize] = stamp;
+            let Some(next) = boundary_successor(index, body, u) else {
+                return false;
+            };
+            if next == start {
+                break;
+            }
+            *walked += 1;
+            if *walked > WALK_BUDGET {
+                return false;
+            }
+            u = next;
+        }
+        self.loop_stamp[g] == stamp
+    }
+
+    /// The search from copy `start` to `goal` over the springs (breadth first); `visits` counts the
+    /// nodes the step's searches visited, and the search gives up past [`REJOIN_BUDGET`].
+    fn search_rejoins(&mut self, body: &Body, start: u32, goal: u32, visits: &mut usize) -> bool {
+        {
+            let visits = &mut *visits;
             let stamp = self.next_stamp();
             let Some(index) = self.index.as_mut().filter(|x| x.is_valid_for(body)) else {
                 return false;
@@ -924,8 +1037,8 @@ impl Cutter {
             while head < queue.len() && !reached {
                 let u = queue[head];
                 head += 1;
-                visits += 1;
-                if visits > REJOIN_BUDGET {
+                *visits += 1;
+                if *visits > REJOIN_BUDGET {
                     return false;
                 }
                 let mark = index.begin();
@@ -946,11 +1059,8 @@ impl Cutter {
                     false
                 });
             }
-            if !reached {
-                return false;
-            }
+            reached
         }
-        true
     }
 
     /// The stiffness and damping diagonals (link, air and the springs at each node) of the nodes the
