@@ -464,12 +464,16 @@ impl Cutter {
     /// [`Cutter::hold_least_mass`] at every node of the body (after a transection). Returns the
     /// nodes fed.
     pub fn hold_least_mass_everywhere(&mut self, body: &mut Body, h: f64) -> u64 {
+        // The index only when some node needs feeding (it is built again at the next cut anyway).
+        if !self.mass_mover.find_light(body, h) {
+            return 0;
+        }
         if !self.sync_index(body) {
             self.mass_mover.counters.unchecked += body.node_count() as u64;
             return 0;
         }
         match self.index.as_mut() {
-            Some(index) => self.mass_mover.hold_all(body, h, index),
+            Some(index) => self.mass_mover.hold_light(body, h, index),
             None => 0,
         }
     }

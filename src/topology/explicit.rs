@@ -61,6 +61,11 @@ pub struct MassMover {
     /// The round each node was last met in (one round per fed node).
     stamp: Vec<u32>,
     round: u32,
+    /// Scratch of [`MassMover::find_light`]: each node's Gershgorin sums (stiffness, damping
+    /// without the air) and the nodes below their least mass.
+    stiffness: Vec<f64>,
+    damping: Vec<f64>,
+    light: Vec<u32>,
     /// What the moves did.
     pub counters: MassMoveCounters,
 }
@@ -95,6 +100,9 @@ impl MassMover {
             donors: Vec::with_capacity(MAX_DONORS),
             stamp: vec![0; capacity],
             round: 0,
+            stiffness: Vec::with_capacity(capacity),
+            damping: Vec::with_capacity(capacity),
+            light: Vec::with_capacity(capacity),
             counters: MassMoveCounters::default(),
         }
     }
@@ -127,11 +135,41 @@ impl MassMover {
         fed
     }
 
-    /// [`MassMover::hold`] at every node of the body (after a transection, whose caps take their
-    /// mass from the rims and add springs there: a pass over the nodes, on that tick only).
-    pub fn hold_all(&mut self, body: &mut Body, h: f64, index: &mut RestIndex) -> u64 {
+    /// The nodes of the body below their least mass at step `h`, into [`MassMover::light`]: one
+    /// pass over the springs and one over the nodes (after a transection, whose caps take their
+    /// mass from the rims and add springs there; on that tick only). Whether there are any.
+    pub fn find_light(&mut self, body: &Body, h: f64) -> bool {
+        let n = body.node_count();
+        self.light.clear();
+        if n > self.stiffness.capacity() {
+            return false;
+        }
+        let s = &body.surface;
+        self.stiffness.clear();
+        self.stiffness.extend_from_slice(&s.link_stiffness);
+        self.damping.clear();
+        self.damping.extend_from_slice(&s.link_damping);
+        let e = &body.edges;
+        for k in 0..e.len() {
+            for v in [e.a[k] as usize, e.b[k] as usize] {
+                self.stiffness[v] += 2.0 * e.stiffness[k];
+                self.damping[v] += 2.0 * e.damping[k];
+            }
+        }
+        let nu = body.params.air_viscosity;
+        for v in 0..n {
+            if s.mass[v] < least_stable_mass(self.stiffness[v], self.damping[v], nu, h, SAFETY) {
+                self.light.push(v as u32);
+            }
+        }
+        !self.light.is_empty()
+    }
+
+    /// [`MassMover::hold`] at the nodes [`MassMover::find_light`] found. Returns the nodes fed.
+    pub fn hold_light(&mut self, body: &mut Body, h: f64, index: &mut RestIndex) -> u64 {
         let mut fed = 0;
-        for v in 0..body.node_count() as u32 {
+        for k in 0..self.light.len() {
+            let v = self.light[k];
             fed += u64::from(self.hold_node(body, h, v, index, None));
         }
         fed
