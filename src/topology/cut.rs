@@ -1025,46 +1025,43 @@ impl Cutter {
     /// The search from copy `start` to `goal` over the springs (breadth first); `visits` counts the
     /// nodes the step's searches visited, and the search gives up past [`REJOIN_BUDGET`].
     fn search_rejoins(&mut self, body: &Body, start: u32, goal: u32, visits: &mut usize) -> bool {
-        {
-            let visits = &mut *visits;
-            let stamp = self.next_stamp();
-            let Some(index) = self.index.as_mut().filter(|x| x.is_valid_for(body)) else {
+        let stamp = self.next_stamp();
+        let Some(index) = self.index.as_mut().filter(|x| x.is_valid_for(body)) else {
+            return false;
+        };
+        let h = &body.surface.homologue_in_body;
+        let (marks, queue) = (&mut self.node_stamp, &mut self.queue);
+        queue.clear();
+        queue.push(start);
+        marks[start as usize] = stamp;
+        let mut head = 0;
+        let mut reached = false;
+        while head < queue.len() && !reached {
+            let u = queue[head];
+            head += 1;
+            *visits += 1;
+            if *visits > REJOIN_BUDGET {
                 return false;
-            };
-            let h = &body.surface.homologue_in_body;
-            let (marks, queue) = (&mut self.node_stamp, &mut self.queue);
-            queue.clear();
-            queue.push(start);
-            marks[start as usize] = stamp;
-            let mut head = 0;
-            let mut reached = false;
-            while head < queue.len() && !reached {
-                let u = queue[head];
-                head += 1;
-                *visits += 1;
-                if *visits > REJOIN_BUDGET {
-                    return false;
-                }
-                let mark = index.begin();
-                let at = RestIndex::point(&h[u as usize]);
-                index.collect_edges(body, &at, mark, |_, a, b| {
-                    let w = if a == u {
-                        b
-                    } else if b == u {
-                        a
-                    } else {
-                        return false;
-                    };
-                    if marks[w as usize] != stamp && queue.len() < queue.capacity() {
-                        marks[w as usize] = stamp;
-                        queue.push(w);
-                        reached |= w == goal;
-                    }
-                    false
-                });
             }
-            reached
+            let mark = index.begin();
+            let at = RestIndex::point(&h[u as usize]);
+            index.collect_edges(body, &at, mark, |_, a, b| {
+                let w = if a == u {
+                    b
+                } else if b == u {
+                    a
+                } else {
+                    return false;
+                };
+                if marks[w as usize] != stamp && queue.len() < queue.capacity() {
+                    marks[w as usize] = stamp;
+                    queue.push(w);
+                    reached |= w == goal;
+                }
+                false
+            });
         }
+        reached
     }
 
     /// The stiffness and damping diagonals (link, air and the springs at each node) of the nodes the
