@@ -1017,7 +1017,7 @@ script = [
     // A cut in a moving, deforming body keeps every created triangle at or above its floor (40
     // sessions each with seeds 7, 13, 99, 2026, 1, 5, 42 under multirate and implicit: none of
     // 18 662; before 2026-11-27's second session 6 of 10 611 for the first four). Until
-    // 2026-11-28 the plain symplectic scheme went past its limit on a cut's light nodes (its guard
+    // that day's third session the plain symplectic scheme went past its limit on a cut's light nodes (its guard
     // acted thousands of times; 4 of 11 000 triangles below with those seeds) and was only
     // reported.
     let [created, misses, ..] = quality[0];
