@@ -25,6 +25,7 @@
 
 use crate::body::Body;
 use crate::body::changes::TopologyChanges;
+use crate::dynamics::stability::node_bounds_into;
 use crate::topology::rest_index::RestIndex;
 
 pub use crate::dynamics::multirate::{MAX_LEVEL, SAFETY};
@@ -61,8 +62,8 @@ pub struct MassMover {
     /// The round each node was last met in (one round per fed node).
     stamp: Vec<u32>,
     round: u32,
-    /// Scratch of [`MassMover::find_light`]: each node's Gershgorin sums (stiffness, damping
-    /// without the air) and the nodes below their least mass.
+    /// Scratch of [`MassMover::find_light`]: each node's Gershgorin sums (stiffness, damping with
+    /// the air's) and the nodes below their least mass.
     stiffness: Vec<f64>,
     damping: Vec<f64>,
     light: Vec<u32>,
@@ -144,21 +145,13 @@ impl MassMover {
         if n > self.stiffness.capacity() {
             return false;
         }
+        node_bounds_into(body, &mut self.stiffness, &mut self.damping);
         let s = &body.surface;
-        self.stiffness.clear();
-        self.stiffness.extend_from_slice(&s.link_stiffness);
-        self.damping.clear();
-        self.damping.extend_from_slice(&s.link_damping);
-        let e = &body.edges;
-        for k in 0..e.len() {
-            for v in [e.a[k] as usize, e.b[k] as usize] {
-                self.stiffness[v] += 2.0 * e.stiffness[k];
-                self.damping[v] += 2.0 * e.damping[k];
-            }
-        }
         let nu = body.params.air_viscosity;
         for v in 0..n {
-            if s.mass[v] < least_stable_mass(self.stiffness[v], self.damping[v], nu, h, SAFETY) {
+            // The bounds' damping holds the air's (ν m); the least mass takes it apart.
+            let c0 = self.damping[v] - s.air_damping[v];
+            if s.mass[v] < least_stable_mass(self.stiffness[v], c0, nu, h, SAFETY) {
                 self.light.push(v as u32);
             }
         }
