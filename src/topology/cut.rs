@@ -462,7 +462,7 @@ impl Cutter {
     }
 
     /// [`Cutter::hold_least_mass`] at every node of the body (after a transection). Returns the
-    /// nodes fed.
+    /// nodes changed (fed or softened).
     pub fn hold_least_mass_everywhere(&mut self, body: &mut Body, h: f64) -> u64 {
         // The index only when some node needs feeding (it is built again at the next cut anyway).
         if !self.mass_mover.find_light(body, h) {
@@ -480,7 +480,7 @@ impl Cutter {
 
     /// Gives the nodes the tick's sealed record lists at least the mass semi-implicit Euler
     /// carries at step `h`, moving mass to them from the nodes round them (see
-    /// [`super::explicit`]); the donors join the record. Returns the nodes fed.
+    /// [`super::explicit`]); the donors join the record. Returns the nodes changed (fed or softened).
     pub fn hold_least_mass(&mut self, body: &mut Body, h: f64) -> u64 {
         match self.index.as_mut() {
             Some(index) if index.is_valid_for(body) => {
@@ -1609,15 +1609,24 @@ impl Cutter {
                 let (ia, ib) = (crossing.a as usize, crossing.b as usize);
                 let slot = (crossing.node - n) as usize;
                 let reach = 0.75 * self.tolerance(body.edges.rest_length[crossing.edge as usize]);
+                // With the flips that follow the templates foreseen: a path from a corner whose
+                // angle is below twice the bound leaves one side of it below the bound wherever
+                // the split is, and the side a flip can mend is the one to give the small angle.
                 let quality_at = |cutter: &Self| {
-                    if mixed {
-                        return cutter.margin_round(body, c);
-                    }
-                    cutter
+                    let round = cutter
                         .affected
                         .iter()
-                        .filter(|t| t.crossing.contains(&Some(c as u16)))
-                        .map(|t| cutter.best_template_quality(body, t))
+                        .filter(|t| t.crossing.contains(&Some(c as u16)));
+                    if mixed {
+                        return round
+                            .map(|t| {
+                                cutter.template_quality_after_flips(body, t)
+                                    - cutter.floor_of(body, t.corners)
+                            })
+                            .fold(f64::INFINITY, f64::min);
+                    }
+                    round
+                        .map(|t| cutter.template_quality_after_flips(body, t))
                         .fold(180.0, f64::min)
                 };
                 let mut best = (quality_at(self), crossing.t);
@@ -1648,6 +1657,86 @@ impl Cutter {
             }
         }
         moved
+    }
+
+    /// [`Cutter::best_template_quality`] with each child below the bound taken at the smallest angle
+    /// a flip of one of its sides would give it: a side that is a side of the parent (not on the
+    /// path) with an unchanged triangle across it, flipped to the child's third corner when that
+    /// corner is a planned split node (so no spring joins the two yet) and the flip is one
+    /// `flip_for_quality` would make (rest normals that agree, the pair's smallest angle raised).
+    fn template_quality_after_flips(&self, body: &Body, a: &Affected) -> f64 {
+        let bound = self.quality_bound_deg;
+        let splits = self.splits_of(a.crossing);
+        let n = body.node_count() as u32;
+        let rest = |v: u32| self.rest_of(body, v);
+        let normal = |tri: [u32; 3]| {
+            let [p, q, r] = tri.map(rest);
+            (q - p).cross(&(r - p)).normalize()
+        };
+        let mended = |child: [u32; 3]| {
+            let quality = min_angle_deg(&child.map(rest));
+            if quality >= bound {
+                return quality;
+            }
+            let mut best = quality;
+            for k in 0..3 {
+                let (u, v, c) = (child[k], child[(k + 1) % 3], child[(k + 2) % 3]);
+                if u >= n
+                    || v >= n
+                    || c < n
+                    || a.path
+                        .is_some_and(|(p, q)| (p == u && q == v) || (p == v && q == u))
+                {
+                    continue;
+                }
+                let Some(across) = self.affected.iter().find(|t| {
+                    t.crossing.iter().all(Option::is_none)
+                        && t.path.is_none()
+                        && (0..3).any(|j| t.corners[j] == v && t.corners[(j + 1) % 3] == u)
+                }) else {
+                    continue;
+                };
+                let Some(w) = across.corners.iter().copied().find(|&x| x != u && x != v) else {
+                    continue;
+                };
+                let (old_t, old_n) = (normal(child), normal(across.corners));
+                let (new_1, new_2) = ([u, w, c], [w, v, c]);
+                let (n1, n2) = (normal(new_1), normal(new_2));
+                let agree = [
+                    old_t.dot(&old_n) - FLIP_FLATNESS,
+                    n1.dot(&n2),
+                    n1.dot(&old_t),
+                    n1.dot(&old_n),
+                    n2.dot(&old_t),
+                    n2.dot(&old_n),
+                ];
+                if agree.iter().any(|d| d.is_nan() || *d <= 0.0) {
+                    continue;
+                }
+                let before = quality.min(min_angle_deg(&across.corners.map(rest)));
+                let after = min_angle_deg(&new_1.map(rest)).min(min_angle_deg(&new_2.map(rest)));
+                if after > before + 1e-9 {
+                    best = best.max(after);
+                }
+            }
+            best
+        };
+        [true, false]
+            .map(|d| {
+                if !a
+                    .path
+                    .is_none_or(|(p, q)| edge_in_template(a.corners, splits, d, p, q))
+                {
+                    return -1.0;
+                }
+                let (children, count) = template_children(a.corners, splits, d);
+                children[..count]
+                    .iter()
+                    .map(|&child| mended(child))
+                    .fold(180.0, f64::min)
+            })
+            .into_iter()
+            .fold(-1.0, f64::max)
     }
 
     /// The smallest margin of the best templates of the affected triangles round crossing `c` over

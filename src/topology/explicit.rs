@@ -22,6 +22,12 @@
 //! receiver's and donors' inverse mass and air damping (ν m) follow; links, homologues and springs
 //! do not change. Where the nodes round it cannot give enough, the node takes what they can and is
 //! counted (`short`).
+//!
+//! The last resort. A chip of a few light nodes cut off whole (a transection's smallest piece, a
+//! millimetre across) has no heavier node round it: its nodes stay short. Such a node's springs and
+//! link are then made softer and less damped by the factor that brings its least mass down to its
+//! mass (m_min is linear in K and C₀), and counted (`softened`). Positions, velocities and masses
+//! do not change: momentum and kinetic energy are kept, and the elastic energy can only fall.
 
 use crate::body::Body;
 use crate::body::changes::TopologyChanges;
@@ -38,6 +44,8 @@ pub const MAX_RINGS: usize = 3;
 const MAX_DEGREE: usize = 64;
 /// Most donors one node takes mass from.
 const MAX_DONORS: usize = 256;
+/// Fraction of the ratio (mass / least mass) a short node's springs are softened by.
+const SOFTEN_MARGIN: f64 = 0.999;
 
 /// What the mass moves did, over the body's life.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -52,6 +60,8 @@ pub struct MassMoveCounters {
     pub short: u64,
     /// Nodes not checked (more springs than the scratch holds, or the rest-frame index stale).
     pub unchecked: u64,
+    /// Nodes left short whose springs and link were softened to what their mass carries.
+    pub softened: u64,
 }
 
 /// Scratch and counters of the mass moves (reserved up front; no allocation on the tick).
@@ -117,7 +127,7 @@ impl MassMover {
     /// Gives each node of the sealed record `changes` (changed by a cut or a tear) at least the
     /// mass semi-implicit Euler carries at step `h`, moving mass to it from the nodes round it
     /// where it has less; the donors join the record (sealed again). Springs come from the
-    /// rest-frame index (`index`, describing the body as it is). Returns the nodes fed.
+    /// rest-frame index (`index`, describing the body as it is). Returns the nodes changed.
     pub fn hold(
         &mut self,
         body: &mut Body,
@@ -158,7 +168,7 @@ impl MassMover {
         !self.light.is_empty()
     }
 
-    /// [`MassMover::hold`] at the nodes [`MassMover::find_light`] found. Returns the nodes fed.
+    /// [`MassMover::hold`] at the nodes [`MassMover::find_light`] found. Returns the nodes changed.
     pub fn hold_light(&mut self, body: &mut Body, h: f64, index: &mut RestIndex) -> u64 {
         let mut fed = 0;
         for k in 0..self.light.len() {
@@ -168,8 +178,8 @@ impl MassMover {
         fed
     }
 
-    /// Feeds node `v` if it is below its least mass (the donors into `changes`, when given);
-    /// whether it was fed.
+    /// Feeds node `v` if it is below its least mass (the donors into `changes`, when given), and
+    /// softens it where the nodes round it cannot give enough; whether it changed.
     fn hold_node(
         &mut self,
         body: &mut Body,
@@ -178,7 +188,6 @@ impl MassMover {
         index: &mut RestIndex,
         mut changes: Option<&mut TopologyChanges>,
     ) -> bool {
-        let nu = body.params.air_viscosity;
         let vi = v as usize;
         if vi >= body.node_count() || vi >= self.stamp.len() {
             return false;
@@ -199,9 +208,25 @@ impl MassMover {
         if take < deficit {
             self.counters.short += 1;
         }
-        if take <= 0.0 {
-            return false;
+        if take > 0.0 {
+            self.feed(body, v, take, total, changes.as_deref_mut());
         }
+        let softened = take < deficit && self.soften(body, v, h, index, changes);
+        take > 0.0 || softened
+    }
+
+    /// Moves `take` kg to node `v` from the donors found (each in proportion to what it can give,
+    /// `total` in all), with its momentum.
+    fn feed(
+        &mut self,
+        body: &mut Body,
+        v: u32,
+        take: f64,
+        total: f64,
+        mut changes: Option<&mut TopologyChanges>,
+    ) {
+        let nu = body.params.air_viscosity;
+        let vi = v as usize;
         let s = &mut body.surface;
         let mut momentum = s.velocity_in_world[vi] * s.mass[vi];
         let mut received = s.mass[vi];
@@ -226,6 +251,51 @@ impl MassMover {
         s.velocity_in_world[vi] = momentum / received;
         self.counters.fed += 1;
         self.counters.moved_kg += take;
+    }
+
+    /// Node `v`, still below its least mass at `h` after the nodes round it gave what they could
+    /// (a chip of a few light nodes cut off whole has no heavier neighbour), has its springs and
+    /// link made softer and less damped by the factor that brings its least mass to its mass: the
+    /// least mass is linear in the stiffness and damping sums. Positions, velocities and masses do
+    /// not change, so momentum is kept, kinetic energy too, and the elastic energy can only fall.
+    /// The springs' other ends join the record (their bounds fell).
+    fn soften(
+        &mut self,
+        body: &mut Body,
+        v: u32,
+        h: f64,
+        index: &mut RestIndex,
+        mut changes: Option<&mut TopologyChanges>,
+    ) -> bool {
+        let vi = v as usize;
+        if !index.incident_edges(body, v) || index.found.len() > MAX_DEGREE {
+            return false;
+        }
+        let need = Self::floor(body, vi, &index.found, h);
+        let mass = body.surface.mass[vi];
+        if need <= mass || !need.is_finite() {
+            return false;
+        }
+        // A little under the ratio, so that the rounding of the sums keeps the node within.
+        let factor = SOFTEN_MARGIN * mass / need;
+        let e = &mut body.edges;
+        for &spring in &index.found {
+            let k = spring as usize;
+            e.stiffness[k] *= factor;
+            e.damping[k] *= factor;
+            if let Some(changes) = changes.as_deref_mut() {
+                changes.edge(spring);
+                changes.node(e.a[k]);
+                changes.node(e.b[k]);
+            }
+        }
+        let s = &mut body.surface;
+        s.link_stiffness[vi] *= factor;
+        s.link_damping[vi] *= factor;
+        if let Some(changes) = changes.as_deref_mut() {
+            changes.node(v);
+        }
+        self.counters.softened += 1;
         true
     }
 
