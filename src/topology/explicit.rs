@@ -292,7 +292,7 @@ impl MassMover {
         let s = &mut body.surface;
         s.link_stiffness[vi] *= factor;
         s.link_damping[vi] *= factor;
-        if let Some(changes) = changes.as_deref_mut() {
+        if let Some(changes) = changes {
             changes.node(v);
         }
         self.counters.softened += 1;
