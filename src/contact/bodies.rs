@@ -628,6 +628,7 @@ pub fn respond_to_body_contacts(
                     &mut counters,
                 );
                 let vertex = NodeRef { body: i, node: v };
+                let mut best: Option<Contact> = None;
                 for k in 0..scratch.found.len() {
                     let face =
                         bodies[j].surface.triangles[scratch.found[k] as usize].map(|w| NodeRef {
@@ -635,8 +636,11 @@ pub fn respond_to_body_contacts(
                             node: w as usize,
                         });
                     if let Some(c) = vertex_face_contact(bodies, vertex, face) {
-                        push(&mut scratch.contacts, &mut counters, c);
+                        keep_nearer(&mut best, c);
                     }
+                }
+                if let Some(c) = best {
+                    push(&mut scratch.contacts, &mut counters, c);
                 }
             }
             if j < i {
@@ -655,6 +659,7 @@ pub fn respond_to_body_contacts(
                     &mut counters,
                 );
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+                let mut best: Option<Contact> = None;
                 for k in 0..scratch.found.len() {
                     let found = scratch.found[k] as usize;
                     let t = bodies[j].surface.triangles[found];
@@ -676,15 +681,17 @@ pub fn respond_to_body_contacts(
                             },
                         ]);
                         if let Some(c) = edge_edge_contact(bodies, a, b) {
-                            push(&mut scratch.contacts, &mut counters, c);
+                            keep_nearer(&mut best, c);
                         }
                     }
+                }
+                if let Some(c) = best {
+                    push(&mut scratch.contacts, &mut counters, c);
                 }
             }
         }
     }
-    // One contact per vertex (or edge) and other body: the nearest (ties by the other side's
-    // nodes), in a fixed order.
+    // One contact per vertex (or edge) and other body, the nearest (kept above), in a fixed order.
     let key = |c: &Contact| (c.kind, c.a, c.b[0].body);
     scratch.contacts.sort_unstable_by(|x, y| {
         key(x)
@@ -928,6 +935,20 @@ fn apply_impulse(
             s.next_position_in_world[r.node] += dv * dt;
         }
         s.velocity_in_world[r.node] += dv;
+    }
+}
+
+/// Keeps in `best` the nearer of it and `c` (ties by the other side's nodes): one contact per
+/// vertex (or edge) and other body.
+fn keep_nearer(best: &mut Option<Contact>, c: Contact) {
+    let nearer = best.as_ref().is_none_or(|b| {
+        c.distance
+            .total_cmp(&b.distance)
+            .then(c.b.cmp(&b.b))
+            .is_lt()
+    });
+    if nearer {
+        *best = Some(c);
     }
 }
 
