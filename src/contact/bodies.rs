@@ -39,6 +39,9 @@ const SOLVER_ITERATIONS: usize = 8;
 const FOUND_CAPACITY: usize = 4096;
 /// Capacity of the contact list (vertex–face contacts between bodies in one tick).
 const CONTACT_CAPACITY: usize = 1 << 14;
+/// Relative margin over the skin of the cheap tests that turn a candidate down before its closest
+/// points are computed.
+const EARLY_OUT_MARGIN: f64 = 1e-6;
 /// Fraction of the shortfall below the rest distance the end positions are parted by per tick
 /// (positions only: no velocity, so no kinetic energy, is added).
 const PART_RATE: f64 = 0.2;
@@ -449,6 +452,12 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     }
     let face_normal = normal / length;
     let pe = end_of(bodies, v);
+    // Farther than the skin in front of the face's plane: not near (the face is no nearer than its
+    // plane) and not crossed (it ends in front), whatever the closest point (the margin is far
+    // above the rounding of either measure).
+    if (pe - end[0]).dot(&face_normal) > CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN) {
+        return None;
+    }
     let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
     let distance = (pe - q).norm();
     let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
@@ -497,6 +506,14 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
 fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Option<Contact> {
     let (a0, a1) = (end_of(bodies, a[0]), end_of(bodies, a[1]));
     let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
+    // Boxes farther apart than the skin along an axis: the edges are too (the nearest points'
+    // distance is at least that gap).
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    let (low_a, high_a) = (a0.inf(&a1), a0.sup(&a1));
+    let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
+    if (0..3).any(|k| low_b[k] - high_a[k] > reach || low_a[k] - high_b[k] > reach) {
+        return None;
+    }
     let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
     const INNER: f64 = 1e-6;
     if !(INNER..=1.0 - INNER).contains(&s) || !(INNER..=1.0 - INNER).contains(&t) {
