@@ -165,6 +165,9 @@ pub struct BodyContactScratch {
     /// The nodes of each contact of `contacts` (after the one-per-vertex selection).
     contact_nodes: Vec<ContactNodes>,
     found: Vec<u32>,
+    /// A body's triangles whose boxes meet another body's bounds (room for the most triangles a
+    /// body may have).
+    near_triangles: Vec<u32>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Vec<Aabb>,
@@ -205,6 +208,14 @@ impl BodyContactScratch {
             contacts: Vec::with_capacity(CONTACT_CAPACITY),
             contact_nodes: Vec::with_capacity(CONTACT_CAPACITY),
             found: Vec::with_capacity(FOUND_CAPACITY),
+            near_triangles: Vec::with_capacity(
+                bodies
+                    .iter()
+                    .map(|b| b.mesh_capacity().1)
+                    .chain(std::iter::once(spare_triangles))
+                    .max()
+                    .unwrap_or(0),
+            ),
             settings: CcdSettings::default(),
             bounds: Vec::with_capacity(count),
             near: Vec::with_capacity(count),
@@ -618,7 +629,12 @@ pub fn respond_to_body_contacts(
         }
     };
     // Each vertex of a body near another once against that body's faces, each edge once against
-    // its edges (a query of the other's hierarchy with the vertex's or edge's swept box).
+    // its edges (a query of the other's hierarchy with the vertex's or edge's swept box). The
+    // vertices and edges looked at are those of the body's own triangles whose boxes meet the
+    // other's bounds, each through the triangle that owns it: a vertex's (edge's) swept box grown
+    // by the skin lies within the box of each of its triangles, so no vertex (edge) whose box meets
+    // the other's bounds is missed, and the cost follows the region where the bodies meet, not
+    // their sizes.
     for i in 0..bodies.len() {
         for j in 0..bodies.len() {
             if i == j
@@ -628,82 +644,100 @@ pub fn respond_to_body_contacts(
                 continue;
             }
             let other = scratch.bounds[j];
+            scratch.near_triangles.clear();
+            if !scratch.bvhs[i].query(&other, &mut scratch.near_triangles) {
+                counters.overflows += 1;
+            }
             let swept = |nodes: &[usize]| {
                 let mut aabb = swept_box(&bodies[i], nodes);
                 aabb.inflate(CONTACT_SKIN);
                 aabb
             };
-            for v in 0..bodies[i].node_count() {
-                let aabb = swept(&[v]);
-                if !aabb.overlaps(&other) {
-                    continue;
-                }
-                query_into(
-                    &mut scratch.bvhs[j],
-                    &aabb,
-                    &mut scratch.found,
-                    &mut counters,
-                );
-                let vertex = NodeRef { body: i, node: v };
-                let mut best: Option<Contact> = None;
-                for k in 0..scratch.found.len() {
-                    let face =
-                        bodies[j].surface.triangles[scratch.found[k] as usize].map(|w| NodeRef {
-                            body: j,
-                            node: w as usize,
-                        });
-                    if let Some(c) = vertex_face_contact(bodies, vertex, face) {
-                        keep_nearer(&mut best, c);
+            for n in 0..scratch.near_triangles.len() {
+                let t = scratch.near_triangles[n] as usize;
+                let owned = scratch.bvhs[i].owned(t);
+                let corners = bodies[i].surface.triangles[t];
+                for (c, &corner) in corners.iter().enumerate() {
+                    if owned & owns_vertex(c) == 0 {
+                        continue;
                     }
-                }
-                if let Some(c) = best {
-                    push(&mut scratch.contacts, &mut counters, c);
-                }
-            }
-            if j < i {
-                continue;
-            }
-            for e in 0..bodies[i].edges.len() {
-                let (ea, eb) = (bodies[i].edges.a[e] as usize, bodies[i].edges.b[e] as usize);
-                let aabb = swept(&[ea, eb]);
-                if !aabb.overlaps(&other) {
-                    continue;
-                }
-                query_into(
-                    &mut scratch.bvhs[j],
-                    &aabb,
-                    &mut scratch.found,
-                    &mut counters,
-                );
-                let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
-                let mut best: Option<Contact> = None;
-                for k in 0..scratch.found.len() {
-                    let found = scratch.found[k] as usize;
-                    let t = bodies[j].surface.triangles[found];
-                    let owned = scratch.bvhs[j].owned(found);
-                    for side in 0..3 {
-                        // Each side once, through the triangle that owns it (whose box the query
-                        // meets whenever it meets the side's).
-                        if owned & owns_side(side) == 0 {
-                            continue;
-                        }
-                        let b = sorted([
-                            NodeRef {
-                                body: j,
-                                node: t[side] as usize,
-                            },
-                            NodeRef {
-                                body: j,
-                                node: t[(side + 1) % 3] as usize,
-                            },
-                        ]);
-                        if let Some(c) = edge_edge_contact(bodies, a, b) {
+                    let v = corner as usize;
+                    let aabb = swept(&[v]);
+                    if !aabb.overlaps(&other) {
+                        continue;
+                    }
+                    query_into(
+                        &mut scratch.bvhs[j],
+                        &aabb,
+                        &mut scratch.found,
+                        &mut counters,
+                    );
+                    let vertex = NodeRef { body: i, node: v };
+                    let mut best: Option<Contact> = None;
+                    for k in 0..scratch.found.len() {
+                        let face =
+                            bodies[j].surface.triangles[scratch.found[k] as usize].map(|w| {
+                                NodeRef {
+                                    body: j,
+                                    node: w as usize,
+                                }
+                            });
+                        if let Some(c) = vertex_face_contact(bodies, vertex, face) {
                             keep_nearer(&mut best, c);
                         }
                     }
+                    if let Some(c) = best {
+                        push(&mut scratch.contacts, &mut counters, c);
+                    }
                 }
-                if let Some(c) = best {
-                    push(&mut scratch.contacts, &mut counters, c);
+                if j < i {
+                    continue;
+                }
+                for side in 0..3 {
+                    if owned & owns_side(side) == 0 {
+                        continue;
+                    }
+                    let (ea, eb) = (corners[side] as usize, corners[(side + 1) % 3] as usize);
+                    let aabb = swept(&[ea, eb]);
+                    if !aabb.overlaps(&other) {
+                        continue;
+                    }
+                    query_into(
+                        &mut scratch.bvhs[j],
+                        &aabb,
+                        &mut scratch.found,
+                        &mut counters,
+                    );
+                    let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+                    let mut best: Option<Contact> = None;
+                    for k in 0..scratch.found.len() {
+                        let found = scratch.found[k] as usize;
+                        let t = bodies[j].surface.triangles[found];
+                        let owned = scratch.bvhs[j].owned(found);
+                        for side in 0..3 {
+                            // Each side once, through the triangle that owns it (whose box the
+                            // query meets whenever it meets the side's).
+                            if owned & owns_side(side) == 0 {
+                                continue;
+                            }
+                            let b = sorted([
+                                NodeRef {
+                                    body: j,
+                                    node: t[side] as usize,
+                                },
+                                NodeRef {
+                                    body: j,
+                                    node: t[(side + 1) % 3] as usize,
+                                },
+                            ]);
+                            if let Some(c) = edge_edge_contact(bodies, a, b) {
+                                keep_nearer(&mut best, c);
+                            }
+                        }
+                    }
+                    if let Some(c) = best {
+                        push(&mut scratch.contacts, &mut counters, c);
+                    }
                 }
             }
         }
