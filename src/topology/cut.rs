@@ -1669,10 +1669,6 @@ impl Cutter {
         let splits = self.splits_of(a.crossing);
         let n = body.node_count() as u32;
         let rest = |v: u32| self.rest_of(body, v);
-        let normal = |tri: [u32; 3]| {
-            let [p, q, r] = tri.map(rest);
-            (q - p).cross(&(r - p)).normalize()
-        };
         let mended = |child: [u32; 3]| {
             let quality = min_angle_deg(&child.map(rest));
             if quality >= bound {
@@ -1699,23 +1695,7 @@ impl Cutter {
                 let Some(w) = across.corners.iter().copied().find(|&x| x != u && x != v) else {
                     continue;
                 };
-                let (old_t, old_n) = (normal(child), normal(across.corners));
-                let (new_1, new_2) = ([u, w, c], [w, v, c]);
-                let (n1, n2) = (normal(new_1), normal(new_2));
-                let agree = [
-                    old_t.dot(&old_n) - FLIP_FLATNESS,
-                    n1.dot(&n2),
-                    n1.dot(&old_t),
-                    n1.dot(&old_n),
-                    n2.dot(&old_t),
-                    n2.dot(&old_n),
-                ];
-                if agree.iter().any(|d| d.is_nan() || *d <= 0.0) {
-                    continue;
-                }
-                let before = quality.min(min_angle_deg(&across.corners.map(rest)));
-                let after = min_angle_deg(&new_1.map(rest)).min(min_angle_deg(&new_2.map(rest)));
-                if after > before + 1e-9 {
+                if let Some(after) = flip_gain(rest, child, across.corners, k, w) {
                     best = best.max(after);
                 }
             }
@@ -2121,29 +2101,9 @@ impl Cutter {
                     if exists {
                         continue;
                     }
-                    let normal = |tri: [u32; 3]| {
-                        let [p, q, r] = tri.map(rest);
-                        (q - p).cross(&(r - p)).normalize()
-                    };
-                    let (old_t, old_n) = (normal(t), normal(u));
-                    let (new_1, new_2) = ([a, w, c], [w, b, c]);
-                    let (n1, n2) = (normal(new_1), normal(new_2));
-                    // Normals that agree (a degenerate triangle's NaN normal agrees with nothing).
-                    let agree = [
-                        old_t.dot(&old_n) - FLIP_FLATNESS,
-                        n1.dot(&n2),
-                        n1.dot(&old_t),
-                        n1.dot(&old_n),
-                        n2.dot(&old_t),
-                        n2.dot(&old_n),
-                    ];
-                    if agree.iter().any(|d| d.is_nan() || *d <= 0.0) {
-                        continue;
-                    }
-                    let before = quality.min(min_angle_deg(&u.map(rest)));
-                    let after =
-                        min_angle_deg(&new_1.map(rest)).min(min_angle_deg(&new_2.map(rest)));
-                    if after > before + 1e-9 && best.is_none_or(|(q, ..)| after > q) {
+                    if let Some(after) = flip_gain(rest, t, u, k, w)
+                        && best.is_none_or(|(q, ..)| after > q)
+                    {
                         best = Some((after, k, n, w));
                     }
                 }
@@ -2548,6 +2508,42 @@ impl Cutter {
 }
 
 /// The fan entries of node `v` (the fan is sorted by node).
+/// The smallest angle of the two triangles a flip of side `k` of triangle `t` (from corner `k` to
+/// corner `k + 1`) makes with the triangle `across` it, whose third corner is `w`, when the flip is
+/// one to make (rest places from `rest`): the rest normals of the two triangles and of the two new
+/// ones agree (no flip across a crease, none that folds: a degenerate triangle's NaN normal agrees
+/// with nothing) and the pair's smallest angle rises.
+fn flip_gain(
+    rest: impl Fn(u32) -> Vec3,
+    t: [u32; 3],
+    across: [u32; 3],
+    k: usize,
+    w: u32,
+) -> Option<f64> {
+    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+    let normal = |tri: [u32; 3]| {
+        let [p, q, r] = tri.map(&rest);
+        (q - p).cross(&(r - p)).normalize()
+    };
+    let (old_t, old_n) = (normal(t), normal(across));
+    let (new_1, new_2) = ([a, w, c], [w, b, c]);
+    let (n1, n2) = (normal(new_1), normal(new_2));
+    let agree = [
+        old_t.dot(&old_n) - FLIP_FLATNESS,
+        n1.dot(&n2),
+        n1.dot(&old_t),
+        n1.dot(&old_n),
+        n2.dot(&old_t),
+        n2.dot(&old_n),
+    ];
+    if agree.iter().any(|d| d.is_nan() || *d <= 0.0) {
+        return None;
+    }
+    let before = min_angle_deg(&t.map(&rest)).min(min_angle_deg(&across.map(&rest)));
+    let after = min_angle_deg(&new_1.map(&rest)).min(min_angle_deg(&new_2.map(&rest)));
+    (after > before + 1e-9).then_some(after)
+}
+
 fn fan_range(fan: &[(u32, u32)], v: u32) -> std::ops::Range<usize> {
     let start = fan.partition_point(|&(w, _)| w < v);
     let end = fan.partition_point(|&(w, _)| w <= v);
