@@ -662,16 +662,9 @@ pub fn respond_to_body_contacts(
                         continue;
                     }
                     let v = corner as usize;
-                    let aabb = swept(&[v]);
-                    if !aabb.overlaps(&other) {
+                    if !query_near(&swept(&[v]), &other, scratch, j, &mut counters) {
                         continue;
                     }
-                    query_into(
-                        &mut scratch.bvhs[j],
-                        &aabb,
-                        &mut scratch.found,
-                        &mut counters,
-                    );
                     let vertex = NodeRef { body: i, node: v };
                     let mut best: Option<Contact> = None;
                     for k in 0..scratch.found.len() {
@@ -698,16 +691,9 @@ pub fn respond_to_body_contacts(
                         continue;
                     }
                     let (ea, eb) = (corners[side] as usize, corners[(side + 1) % 3] as usize);
-                    let aabb = swept(&[ea, eb]);
-                    if !aabb.overlaps(&other) {
+                    if !query_near(&swept(&[ea, eb]), &other, scratch, j, &mut counters) {
                         continue;
                     }
-                    query_into(
-                        &mut scratch.bvhs[j],
-                        &aabb,
-                        &mut scratch.found,
-                        &mut counters,
-                    );
                     let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
                     let mut best: Option<Contact> = None;
                     for k in 0..scratch.found.len() {
@@ -861,6 +847,22 @@ fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
         &s.next_position_in_world,
         margin,
     );
+}
+
+/// When `aabb` (a vertex's or edge's swept box) meets `other` (body `j`'s bounds): body `j`'s
+/// triangles whose boxes meet it, into the scratch's `found`, and true.
+fn query_near(
+    aabb: &Aabb,
+    other: &Aabb,
+    scratch: &mut BodyContactScratch,
+    j: usize,
+    counters: &mut BodyContactCounters,
+) -> bool {
+    if !aabb.overlaps(other) {
+        return false;
+    }
+    query_into(&mut scratch.bvhs[j], aabb, &mut scratch.found, counters);
+    true
 }
 
 /// The triangles of `bvh` whose boxes meet `aabb`, into `found` (a full list counted as an overflow).
