@@ -184,6 +184,24 @@ struct Spare {
     broad: BroadScratch,
 }
 
+/// After a transection, for the part kept and for each piece: no node lighter than the finest
+/// multi-rate sub-step carries (the caps took their mass from the rims and added springs there),
+/// then the solver goes on multi-rate if it was waiting for a first cut, and follows the new mesh.
+fn settle_after_transection(
+    solver: &mut BodySolver,
+    cutter: Option<&mut Cutter>,
+    body: &mut Body,
+    dt: f64,
+) {
+    if solver.sub_steps()
+        && let Some(cutter) = cutter
+    {
+        cutter.hold_least_mass_everywhere(body, finest_step(dt));
+    }
+    solver.cut_made(body, dt);
+    solver.topology_changed(body, dt, None);
+}
+
 /// The integrator of one body with its scratch memory.
 #[derive(Clone, Debug)]
 enum BodySolver {
@@ -767,12 +785,7 @@ impl World {
         cutter.renumbered();
         // The part kept is one part of the spring graph (its caps only add springs within it).
         cutter.connected = true;
-        // The caps took their mass from the rims and added springs there.
-        if self.solvers[b].sub_steps() {
-            cutter.hold_least_mass_everywhere(body, finest_step(dt));
-        }
-        self.solvers[b].cut_made(body, dt);
-        self.solvers[b].topology_changed(body, dt, None);
+        settle_after_transection(&mut self.solvers[b], Some(cutter), body, dt);
         self.kernels[b].invalidate();
         self.broad[b].held.invalidate();
         if let Some(refinement) = self.refinements[b].as_mut() {
@@ -798,12 +811,13 @@ impl World {
                 // A piece is one part of the spring graph, as the part kept.
                 cutter.connected = true;
                 cutter.changed_at = tick;
-                if spare.solver.sub_steps() {
-                    cutter.hold_least_mass_everywhere(&mut spare.body, finest_step(dt));
-                }
             }
-            spare.solver.cut_made(&spare.body, dt);
-            spare.solver.topology_changed(&spare.body, dt, None);
+            settle_after_transection(
+                &mut spare.solver,
+                spare.cutter.as_mut(),
+                &mut spare.body,
+                dt,
+            );
             if let Some(refinement) = spare.refinement.as_mut() {
                 refinement.renumbered(&spare.body);
             }

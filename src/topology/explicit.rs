@@ -118,6 +118,16 @@ impl MassMover {
         }
     }
 
+    /// Node `v`'s least mass at `h` and its mass, its springs left in `index.found`; `None` when
+    /// they cannot be listed (more than the scratch holds, or the index stale).
+    fn need_and_mass(body: &Body, v: u32, h: f64, index: &mut RestIndex) -> Option<(f64, f64)> {
+        if !index.incident_edges(body, v) || index.found.len() > MAX_DEGREE {
+            return None;
+        }
+        let need = Self::floor(body, v as usize, &index.found, h);
+        Some((need, body.surface.mass[v as usize]))
+    }
+
     /// The least mass node `v` (its springs `springs`) may hold when stepped at `h`.
     fn floor(body: &Body, v: usize, springs: &[u32], h: f64) -> f64 {
         let (k, c0) = sums(body, v, springs);
@@ -193,12 +203,10 @@ impl MassMover {
             return false;
         }
         self.counters.checked += 1;
-        if !index.incident_edges(body, v) || index.found.len() > MAX_DEGREE {
+        let Some((need, mass)) = Self::need_and_mass(body, v, h, index) else {
             self.counters.unchecked += 1;
             return false;
-        }
-        let need = Self::floor(body, vi, &index.found, h);
-        let mass = body.surface.mass[vi];
+        };
         if mass >= need {
             return false;
         }
@@ -268,11 +276,9 @@ impl MassMover {
         mut changes: Option<&mut TopologyChanges>,
     ) -> bool {
         let vi = v as usize;
-        if !index.incident_edges(body, v) || index.found.len() > MAX_DEGREE {
+        let Some((need, mass)) = Self::need_and_mass(body, v, h, index) else {
             return false;
-        }
-        let need = Self::floor(body, vi, &index.found, h);
-        let mass = body.surface.mass[vi];
+        };
         if need <= mass || !need.is_finite() {
             return false;
         }
