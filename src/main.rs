@@ -734,7 +734,7 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
     for (options, report) in devices.iter().zip(reports) {
         let report = report.map_err(|e| anyhow::anyhow!("device {}: {e}", options.tool))?;
         println!(
-            "palpa demo: {}: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N",
+            "palpa demo: {}: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N; touching tissue in {} answers ({:.0} %)",
             options.tool,
             report.poses_sent,
             report.latencies_us.len(),
@@ -742,7 +742,9 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
             report.latency_percentile(0.5),
             report.latency_percentile(0.99),
             report.latency_percentile(0.999),
-            report.max_force
+            report.max_force,
+            report.answers_in_contact,
+            100.0 * report.answers_in_contact as f64 / report.latencies_us.len().max(1) as f64
         );
     }
     let daemon_out = String::from_utf8_lossy(&output.stdout);

@@ -27,6 +27,8 @@ pub enum Motion {
     Stroke,
     /// Four presses of 4 mm, one a second.
     Palpate,
+    /// Presses of 4 mm, one a second, for as long as the device runs (a tool kept at work).
+    PalpateThroughout,
     /// A smooth random walk over and into the surface (seeded).
     Random,
 }
@@ -92,7 +94,7 @@ impl DeviceOptions {
 /// IPC tool (in scene order, wrapping round), at the top of the body as placed. A grasper comes
 /// down over it with its jaws open across the body's narrower side, closes, lifts it 2 cm, holds,
 /// puts it down and opens, every 5 s; any other tool palpates it (presses of 4 mm once a second,
-/// from 3 cm above).
+/// from 3 cm above, for as long as the devices run).
 pub fn devices_for_scene(
     scene: &crate::scene::Scene,
     prefix: &str,
@@ -172,7 +174,7 @@ pub fn devices_for_scene(
                 HandPath::Script(grasp_cycle(&at, centre.z, jaw_length, &down, duration))
             }
             _ => HandPath::BuiltIn {
-                motion: Motion::Palpate,
+                motion: Motion::PalpateThroughout,
                 at,
                 seed: k as u64 + 1,
             },
@@ -262,6 +264,9 @@ pub struct DeviceReport {
     pub latencies_us: Vec<f64>,
     /// Largest force received (N).
     pub max_force: f64,
+    /// Answered poses whose answer had the tool touching tissue (contact or a grasp: `contacts`
+    /// above 0).
+    pub answers_in_contact: u64,
     /// Wall time (s).
     pub seconds: f64,
     /// One row per pose, when asked.
@@ -334,10 +339,10 @@ pub fn built_in_target(motion: Motion, at: &Vec3, t: f64, seed: u64) -> Vec3 {
             let lift = smooth((t - 5.3) / 0.7);
             at + Vec3::new(x, 0.0, z + (above - z) * lift)
         }
-        Motion::Palpate => {
+        Motion::Palpate | Motion::PalpateThroughout => {
             let depth = -0.004;
             let phase = (t - 0.5).rem_euclid(1.0);
-            let pressing = (0.5..4.5).contains(&t);
+            let pressing = t >= 0.5 && (t < 4.5 || motion == Motion::PalpateThroughout);
             let dip = if pressing {
                 (std::f64::consts::PI * phase).sin().powi(2)
             } else {
@@ -370,6 +375,7 @@ struct Tally {
     answered_up_to: u64,
     received: u64,
     max_force: f64,
+    in_contact: u64,
     force: Vec3,
     contacts: u32,
     flags: u32,
@@ -398,6 +404,9 @@ impl Tally {
             let latency = (now - self.sent_at[slot]).as_secs_f64() * 1e6;
             self.latencies.push(latency);
             self.window.push(latency);
+            if feedback.contacts > 0 {
+                self.in_contact += 1;
+            }
         }
     }
 }
@@ -472,6 +481,7 @@ pub fn run_device(
         answered_up_to: 0,
         received: 0,
         max_force: 0.0,
+        in_contact: 0,
         force: Vec3::zeros(),
         contacts: 0,
         flags: 0,
@@ -567,6 +577,7 @@ pub fn run_device(
         feedback_received: tally.received,
         latencies_us: latencies,
         max_force: tally.max_force,
+        answers_in_contact: tally.in_contact,
         seconds: started.elapsed().as_secs_f64(),
         trace,
     })

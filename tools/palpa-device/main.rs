@@ -32,6 +32,8 @@ enum MotionArg {
     Stroke,
     /// Four presses of 4 mm, one a second.
     Palpate,
+    /// Presses of 4 mm, one a second, for as long as the device runs.
+    PalpateThroughout,
     /// A smooth random walk over and into the surface (seeded).
     Random,
 }
@@ -110,6 +112,7 @@ fn main() -> Result<()> {
                 MotionArg::Press => Motion::Press,
                 MotionArg::Stroke => Motion::Stroke,
                 MotionArg::Palpate => Motion::Palpate,
+                MotionArg::PalpateThroughout => Motion::PalpateThroughout,
                 MotionArg::Random => Motion::Random,
             },
             at: args.at,
@@ -144,6 +147,7 @@ fn main() -> Result<()> {
             "max": report.latencies_us.last().copied().unwrap_or(0.0),
         },
         "max_force": report.max_force,
+        "answers_in_contact": report.answers_in_contact,
         "seconds": report.seconds,
     });
     println!("{summary}");
