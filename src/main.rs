@@ -680,14 +680,27 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
         .and_then(|f| Ok(f.subscriber_builder().create()?))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let stop = Arc::new(AtomicBool::new(false));
-    // Every device but the first on a thread of its own; the first shows the status line.
+    // Every device but the first on a thread of its own, leaving its last status for the first
+    // device's status line.
+    let latest = Arc::new(std::sync::Mutex::new(vec![
+        None::<
+            palpa::device::run::DeviceStatus,
+        >;
+        devices.len()
+    ]));
     let others: Vec<_> = devices[1..]
         .iter()
         .cloned()
-        .map(|options| {
-            let stop = stop.clone();
+        .enumerate()
+        .map(|(k, options)| {
+            let (stop, latest) = (stop.clone(), latest.clone());
             std::thread::spawn(move || {
-                run_device(&options, stop, |_| {}).map_err(|e| e.to_string())
+                run_device(&options, stop, |status| {
+                    if let Ok(mut latest) = latest.lock() {
+                        latest[k + 1] = Some(*status);
+                    }
+                })
+                .map_err(|e| e.to_string())
             })
         })
         .collect();
@@ -697,7 +710,7 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
         while let Ok(Some(sample)) = stats.receive() {
             misses = sample.payload().synchronicity_misses;
         }
-        let line = format!(
+        let mut line = format!(
             "t {:4.1} s | {} force {:6.3} N | contacts {:2} | round trip p99 {:7.1} µs | synchronicity misses {}",
             status.t,
             devices[0].tool,
@@ -706,6 +719,19 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
             status.latency_p99_us,
             misses
         );
+        // The other tools' last force and contacts (a grasper's contacts are the nodes it holds).
+        if let Ok(latest) = latest.lock() {
+            for (device, other) in devices.iter().zip(latest.iter()).skip(1) {
+                if let Some(other) = other {
+                    line += &format!(
+                        " | {} force {:6.3} N, contacts {:2}",
+                        device.tool,
+                        other.force.norm(),
+                        other.contacts
+                    );
+                }
+            }
+        }
         if terminal {
             print!("\r{line}");
             let _ = std::io::stdout().flush();

@@ -441,6 +441,15 @@ fn demo_drives_both_tools_of_the_laparoscopy_scene() {
             .and_then(|n| n.parse().ok())
             .unwrap_or_else(|| panic!("{line}"));
         assert!(answered > 1000, "{line}");
+        // Each tool reaches tissue within the 2 s: the probe's first press bottoms out at 1 s,
+        // the grasper's jaws close on the tube at 1.5 s.
+        let touching: u64 = line
+            .split("touching tissue in ")
+            .nth(1)
+            .and_then(|a| a.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{line}"));
+        assert!(touching > 50, "{line}");
     }
     assert!(text.contains("palpa serve: stopped after"), "{text}");
     // A scene name that is neither a file nor built in is refused, naming the built-in ones.

@@ -582,3 +582,47 @@ pub fn run_device(
         trace,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn palpation_throughout_keeps_pressing_where_four_presses_stop() {
+        let at = Vec3::new(0.01, -0.02, 0.05);
+        // The bottom of each press (half a second into each second from 0.5 s on) is 4 mm below
+        // the surface point; between presses the hand hovers 3 cm above it.
+        for t in [1.0, 2.0, 4.0] {
+            for motion in [Motion::Palpate, Motion::PalpateThroughout] {
+                let z = built_in_target(motion, &at, t, 1).z - at.z;
+                assert!((z + 0.004).abs() < 1e-12, "{motion:?} at {t} s: {z}");
+            }
+        }
+        for t in [5.0, 17.0, 59.0] {
+            let four = built_in_target(Motion::Palpate, &at, t, 1) - at;
+            let throughout = built_in_target(Motion::PalpateThroughout, &at, t, 1) - at;
+            assert!(
+                (four.z - 0.03).abs() < 1e-12,
+                "four presses at {t} s: {four:?}"
+            );
+            assert!(
+                (throughout.z + 0.004).abs() < 1e-12,
+                "throughout at {t} s: {throughout:?}"
+            );
+            assert_eq!((throughout.x, throughout.y), (0.0, 0.0));
+        }
+        // A scene's non-grasping tools palpate throughout.
+        let scene = crate::scene::built_in_scene("laparoscopy")
+            .unwrap()
+            .unwrap();
+        let devices = devices_for_scene(&scene, "t", 60.0);
+        let probe = devices.iter().find(|d| d.tool == "probe").unwrap();
+        assert!(matches!(
+            probe.path,
+            HandPath::BuiltIn {
+                motion: Motion::PalpateThroughout,
+                ..
+            }
+        ));
+    }
+}
