@@ -172,6 +172,13 @@ pub struct BodyContactScratch {
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Vec<Aabb>,
     near: Vec<bool>,
+    /// What the response left for the collision net this tick (see [`Prepared`]).
+    prepared: Prepared,
+    /// Each body's swept bounds with no margin, from the response: grown by the ends of tick the
+    /// response moved, they hold the net's bounds.
+    tight_bounds: Vec<Aabb>,
+    /// The bodies whose hierarchies the response refitted (with no margin) this tick.
+    fitted: Vec<bool>,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -219,10 +226,26 @@ impl BodyContactScratch {
             settings: CcdSettings::default(),
             bounds: Vec::with_capacity(count),
             near: Vec::with_capacity(count),
+            prepared: Prepared::Nothing,
+            tight_bounds: Vec::with_capacity(count),
+            fitted: Vec::with_capacity(count),
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
         }
     }
+}
+
+/// What the response of this tick leaves for the collision net, which runs right after it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Prepared {
+    /// Nothing (the net finds its bounds and refits on its own).
+    Nothing,
+    /// No two bodies' bounds met within the skin: none meet without it, and nothing moved.
+    NoneNear,
+    /// The hierarchies of `fitted` bodies are refitted with no margin and know the nodes the
+    /// response moved since; `tight_bounds` hold the bounds with no margin before it moved them,
+    /// grown by where it moved them to.
+    Fitted,
 }
 
 /// A node of some body.
@@ -344,15 +367,43 @@ pub fn resolve_body_collisions(
     dt: f64,
 ) -> BodyContactCounters {
     let mut counters = BodyContactCounters::default();
+    let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
+    if prepared == Prepared::NoneNear {
+        return counters;
+    }
     for round in 0..=ROUNDS {
         let freeze = round == ROUNDS;
         // The bounds of the first round hold for the later ones: stopping short only shortens
         // trajectories.
-        if round == 0 && !bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near) {
-            break;
+        if round == 0 {
+            let any = if prepared == Prepared::Fitted {
+                // The response's bounds with no margin, grown by the ends it moved: they hold
+                // every node's trajectory now, so a pair of bodies whose bounds do not meet has no
+                // triangle boxes that meet either.
+                scratch.bounds.clear();
+                scratch.bounds.extend_from_slice(&scratch.tight_bounds);
+                scratch.near.iter_mut().for_each(|n| *n = false);
+                mark_near(group, &scratch.bounds, &mut scratch.near)
+            } else {
+                bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near)
+            };
+            if !any {
+                break;
+            }
         }
         for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
-            if scratch.near[k] {
+            if !scratch.near[k] {
+                continue;
+            }
+            if round == 0 && prepared == Prepared::Fitted && scratch.fitted[k] {
+                // Refitted by the response: only what it moved since is taken again.
+                let s = &b.surface;
+                bvh.refit_moved(
+                    &s.triangles,
+                    &s.position_in_world,
+                    &s.next_position_in_world,
+                );
+            } else {
                 refit_hierarchy(b, bvh, 0.0);
             }
         }
@@ -603,24 +654,34 @@ pub fn respond_to_body_contacts(
     scratch.forces.resize(bodies.len(), Vec3::zeros());
     scratch.work.clear();
     scratch.work.resize(bodies.len(), 0.0);
+    scratch.prepared = Prepared::NoneNear;
     if bodies.len() < 2 {
         return counters;
     }
     scratch.contacts.clear();
-    if !bodies_near(
-        bodies,
-        group,
-        CONTACT_SKIN,
-        &mut scratch.bounds,
-        &mut scratch.near,
-    ) {
+    // The bounds with no margin (kept for the net), then grown by the skin: the bodies near within
+    // the skin are those whose grown bounds meet.
+    bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near);
+    scratch.tight_bounds.clear();
+    scratch.tight_bounds.extend_from_slice(&scratch.bounds);
+    for (k, aabb) in scratch.bounds.iter_mut().enumerate() {
+        aabb.inflate(CONTACT_SKIN);
+        scratch.near[k] = false;
+    }
+    if !mark_near(group, &scratch.bounds, &mut scratch.near) {
         return counters;
     }
+    // The hierarchies are refitted with no margin (the collision net's boxes, kept for it) and
+    // the queries grown by the skin twice instead: the same boxes meet, but where their gap is
+    // twice the skin, to rounding — far beyond any contact (within the skin, or crossing).
+    scratch.fitted.clear();
     for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
         if scratch.near[k] {
-            refit_hierarchy(b, bvh, CONTACT_SKIN);
+            refit_hierarchy(b, bvh, 0.0);
         }
+        scratch.fitted.push(scratch.near[k]);
     }
+    scratch.prepared = Prepared::Fitted;
     let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
         if contacts.len() == contacts.capacity() {
             counters.contacts_dropped += 1;
@@ -643,13 +704,16 @@ pub fn respond_to_body_contacts(
             {
                 continue;
             }
-            let other = scratch.bounds[j];
+            let other = scratch.tight_bounds[j];
+            let mut reach = scratch.bounds[j];
+            reach.inflate(CONTACT_SKIN);
             scratch.near_triangles.clear();
-            if !scratch.bvhs[i].query(&other, &mut scratch.near_triangles) {
+            if !scratch.bvhs[i].query(&reach, &mut scratch.near_triangles) {
                 counters.overflows += 1;
             }
             let swept = |nodes: &[usize]| {
                 let mut aabb = swept_box(&bodies[i], nodes);
+                aabb.inflate(CONTACT_SKIN);
                 aabb.inflate(CONTACT_SKIN);
                 aabb
             };
@@ -791,6 +855,18 @@ pub fn respond_to_body_contacts(
             move_end(bodies, r, push * w);
         }
     }
+    // The ends of tick the response moved (its displacement impulses and the parting: nodes of
+    // its contacts that a tool does not hold), for the net's hierarchies and bounds.
+    for nodes in &scratch.contact_nodes {
+        for k in 0..nodes.count {
+            if nodes.inverse_masses[k] == 0.0 {
+                continue;
+            }
+            let r = nodes.refs[k];
+            scratch.bvhs[r.body].mark_moved(r.node);
+            scratch.tight_bounds[r.body].include(&end_of(bodies, r));
+        }
+    }
     counters
 }
 
@@ -817,9 +893,15 @@ fn bodies_near(
         bounds.push(aabb);
         near.push(false);
     }
+    mark_near(group, bounds, near)
+}
+
+/// Marks in `near` the bodies whose `bounds` meet those of another body not of their group;
+/// returns whether any pair meets.
+fn mark_near(group: &[usize], bounds: &[Aabb], near: &mut [bool]) -> bool {
     let mut any = false;
-    for i in 0..bodies.len() {
-        for j in i + 1..bodies.len() {
+    for i in 0..bounds.len() {
+        for j in i + 1..bounds.len() {
             if group.get(i).is_some_and(|g| group.get(j) == Some(g))
                 || !bounds[i].overlaps(&bounds[j])
             {
