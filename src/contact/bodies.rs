@@ -51,6 +51,9 @@ const PART_RATE: f64 = 0.2;
 const FILTER_MARGIN: f64 = 1e-5;
 /// Capacity of the collision net's candidate triangle-pair list.
 const PAIR_CAPACITY: usize = 1 << 16;
+/// Relative room between the square of a lower bound of a distance (a point's to a plane, or
+/// between two lines) and the square of the distance, far above the rounding of either.
+const BOUND_ROUNDING: f64 = 1e-6;
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
 /// Fraction of the time of impact a colliding node is allowed to travel.
@@ -179,6 +182,8 @@ pub struct BodyContactScratch {
     tight_bounds: Vec<Aabb>,
     /// The bodies whose hierarchies the response refitted (with no margin) this tick.
     fitted: Vec<bool>,
+    /// Each body's largest node displacement over the tick (m), at least.
+    max_motion: Vec<f64>,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -229,6 +234,7 @@ impl BodyContactScratch {
             prepared: Prepared::Nothing,
             tight_bounds: Vec::with_capacity(count),
             fitted: Vec::with_capacity(count),
+            max_motion: Vec::with_capacity(count),
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
         }
@@ -307,12 +313,26 @@ fn parting(bodies: &[Body], nodes: &[NodeRef; 4], vertex_face: bool) -> bool {
 fn test_primitive(
     bodies: &mut [Body],
     nodes: [NodeRef; 4],
-    vertex_face: bool,
+    (vertex_face, max_motion): (bool, &[f64]),
     settings: &CcdSettings,
     freeze: bool,
     dt: f64,
 ) -> bool {
     let s = nodes.map(|r| start_of(bodies, r));
+    // First, without square roots or closest points, a pair whose start distance is beyond what
+    // the two bodies' nodes move at most: the distance of the vertex to the face's plane (between
+    // the edges' lines) is a lower bound of it, and the two bodies' largest displacements bound
+    // the reach below from above; the test below turns such a pair down too.
+    let (offset, across) = if vertex_face {
+        (s[0] - s[1], (s[2] - s[1]).cross(&(s[3] - s[1])))
+    } else {
+        (s[2] - s[0], (s[1] - s[0]).cross(&(s[3] - s[2])))
+    };
+    let along = offset.dot(&across);
+    let most = max_motion[nodes[0].body] + max_motion[nodes[3].body] + FILTER_MARGIN;
+    if along * along > most * most * across.norm_squared() * (1.0 + BOUND_ROUNDING) {
+        return false;
+    }
     let e = nodes.map(|r| end_of(bodies, r));
     // Two primitives that start farther apart than their nodes move over the tick cannot meet:
     // every point of a face (edge) moves by at most its nodes' largest displacement. This skips
@@ -385,7 +405,16 @@ pub fn resolve_body_collisions(
                 scratch.near.iter_mut().for_each(|n| *n = false);
                 mark_near(group, &scratch.bounds, &mut scratch.near)
             } else {
-                bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near)
+                bodies_near(
+                    bodies,
+                    group,
+                    0.0,
+                    (
+                        &mut scratch.bounds,
+                        &mut scratch.near,
+                        &mut scratch.max_motion,
+                    ),
+                )
             };
             if !any {
                 break;
@@ -448,7 +477,7 @@ pub fn resolve_body_collisions(
                             answered += test_primitive(
                                 bodies,
                                 nodes,
-                                true,
+                                (true, &scratch.max_motion),
                                 &scratch.settings,
                                 overflow_freeze,
                                 dt,
@@ -467,7 +496,7 @@ pub fn resolve_body_collisions(
                             answered += test_primitive(
                                 bodies,
                                 nodes,
-                                false,
+                                (false, &scratch.max_motion),
                                 &scratch.settings,
                                 overflow_freeze,
                                 dt,
@@ -661,7 +690,16 @@ pub fn respond_to_body_contacts(
     scratch.contacts.clear();
     // The bounds with no margin (kept for the net), then grown by the skin: the bodies near within
     // the skin are those whose grown bounds meet.
-    bodies_near(bodies, group, 0.0, &mut scratch.bounds, &mut scratch.near);
+    bodies_near(
+        bodies,
+        group,
+        0.0,
+        (
+            &mut scratch.bounds,
+            &mut scratch.near,
+            &mut scratch.max_motion,
+        ),
+    );
     scratch.tight_bounds.clear();
     scratch.tight_bounds.extend_from_slice(&scratch.bounds);
     for (k, aabb) in scratch.bounds.iter_mut().enumerate() {
@@ -864,7 +902,11 @@ pub fn respond_to_body_contacts(
             }
             let r = nodes.refs[k];
             scratch.bvhs[r.body].mark_moved(r.node);
-            scratch.tight_bounds[r.body].include(&end_of(bodies, r));
+            let end = end_of(bodies, r);
+            scratch.tight_bounds[r.body].include(&end);
+            let motion = (end - start_of(bodies, r)).norm();
+            let largest = &mut scratch.max_motion[r.body];
+            *largest = largest.max(motion);
         }
     }
     counters
@@ -877,21 +919,24 @@ fn bodies_near(
     bodies: &[Body],
     group: &[usize],
     margin: f64,
-    bounds: &mut Vec<Aabb>,
-    near: &mut Vec<bool>,
+    (bounds, near, max_motion): (&mut Vec<Aabb>, &mut Vec<bool>, &mut Vec<f64>),
 ) -> bool {
     bounds.clear();
     near.clear();
+    max_motion.clear();
     for b in bodies {
         let s = &b.surface;
         let mut aabb = Aabb::empty();
+        let mut largest: f64 = 0.0;
         for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
             aabb.min = aabb.min.inf(&p.inf(q));
             aabb.max = aabb.max.sup(&p.sup(q));
+            largest = largest.max((q - p).norm_squared());
         }
         aabb.inflate(margin);
         bounds.push(aabb);
         near.push(false);
+        max_motion.push(largest.sqrt());
     }
     mark_near(group, bounds, near)
 }
