@@ -92,9 +92,9 @@ impl DeviceOptions {
 /// a Geomagic Touch. A grasper works on the thinnest body (whose narrower horizontal side is the
 /// smallest: the easiest to take between its jaws), any other tool on the k-th body for the k-th
 /// IPC tool (in scene order, wrapping round), at the top of the body as placed. A grasper comes
-/// down over it with its jaws open across the body's narrower side, closes, lifts it 2 cm, holds,
-/// puts it down and opens, every 5 s; any other tool palpates it (presses of 4 mm once a second,
-/// from 3 cm above, for as long as the devices run).
+/// down over it with its jaws open across the body's narrower side, closes and, holding it, lifts
+/// it 2 cm and puts it down every 5 s, letting go at the end of the run; any other tool palpates it
+/// (presses of 4 mm once a second, from 3 cm above, for as long as the devices run).
 pub fn devices_for_scene(
     scene: &crate::scene::Scene,
     prefix: &str,
@@ -194,7 +194,11 @@ pub fn devices_for_scene(
 
 /// Keyframes of a grasper taking a body whose top is at `top` and centre at height `middle`:
 /// hover 3 cm over the top with the jaws open (1.2 rad), come down until their tips, closed, are at
-/// the middle's height, close, lift 2 cm, hold, put down, open, go back up; a 5 s cycle repeated.
+/// the middle's height, and close (at 1.5 s); then, holding it, lift it 2 cm over a second, hold
+/// it up a second, put it down over a second and rest two, every 5 s (a retraction, repeated);
+/// at the end of the run (after the last whole lift that leaves a second to spare) open and go
+/// back up. Held throughout, the body cannot slip out of the jaws' path between grasps (a tissue
+/// let go settles elsewhere on its ligaments, and jaws that come down where it was would miss it).
 fn grasp_cycle(
     top: &Vec3,
     middle: f64,
@@ -205,35 +209,38 @@ fn grasp_cycle(
     let open: f64 = 1.2;
     let hinge = middle + jaw_length;
     let above = top.z + jaw_length + 0.03;
-    let steps: [(f64, f64, f64); 8] = [
-        (0.0, above, open),
-        (1.0, hinge, open),
-        (1.5, hinge, 0.0),
-        (2.5, hinge + 0.02, 0.0),
-        (3.5, hinge + 0.02, 0.0),
-        (4.0, hinge, 0.0),
-        (4.3, hinge, open),
-        (5.0, above, open),
-    ];
-    let mut keys = Vec::new();
-    let mut start = 0.0;
-    while start <= duration {
-        for &(t, z, jaw) in &steps {
-            if start > 0.0 && t == 0.0 {
-                continue;
-            }
-            keys.push(Keyframe {
-                t: start + t,
-                pose: crate::tool::ToolPose {
-                    position_in_world: Vec3::new(top.x, top.y, z),
-                    world_from_tool: *orientation,
-                },
-                jaw,
-            });
+    let mut steps: Vec<(f64, f64, f64)> = vec![(0.0, above, open), (1.0, hinge, open)];
+    let mut lift = 1.5;
+    loop {
+        steps.extend([
+            (lift, hinge, 0.0),
+            (lift + 1.0, hinge + 0.02, 0.0),
+            (lift + 2.0, hinge + 0.02, 0.0),
+            (lift + 3.0, hinge, 0.0),
+        ]);
+        // Another whole lift, then the release a second after it, within the run?
+        if lift + 5.0 + 4.0 > duration {
+            break;
         }
-        start += 5.0;
+        lift += 5.0;
     }
-    keys
+    let release = lift + 3.5;
+    steps.extend([
+        (release, hinge, 0.0),
+        (release + 0.3, hinge, open),
+        (release + 1.0, above, open),
+    ]);
+    steps
+        .into_iter()
+        .map(|(t, z, jaw)| Keyframe {
+            t,
+            pose: crate::tool::ToolPose {
+                position_in_world: Vec3::new(top.x, top.y, z),
+                world_from_tool: *orientation,
+            },
+            jaw,
+        })
+        .collect()
 }
 
 /// One row of the device trace.
@@ -624,5 +631,29 @@ mod tests {
                 ..
             }
         ));
+        // The grasper holds what it took from 1.5 s until a last put-down with a second to spare,
+        // lifting it 2 cm every 5 s, then lets go and goes up within the run.
+        let grasper = devices.iter().find(|d| d.tool == "grasper").unwrap();
+        let HandPath::Script(keys) = &grasper.path else {
+            panic!("the grasper follows keyframes");
+        };
+        let release = keys.iter().find(|k| k.t > 1.5 && k.jaw > 0.0).unwrap().t;
+        assert!(release > 50.0 && release <= 59.0, "{release}");
+        assert!(
+            keys.iter()
+                .all(|k| (1.5..release - 0.3).contains(&k.t) <= (k.jaw == 0.0))
+        );
+        let low = keys[2].pose.position_in_world.z;
+        let lifts = keys
+            .iter()
+            .filter(|k| (k.pose.position_in_world.z - low - 0.02).abs() < 1e-12 && k.jaw == 0.0)
+            .count();
+        assert_eq!(
+            lifts,
+            2 * 11,
+            "two keyframes up per lift, one lift every 5 s"
+        );
+        let last = keys.last().unwrap();
+        assert!(last.t <= 60.0 && last.jaw > 0.0 && last.pose.position_in_world.z > low);
     }
 }
