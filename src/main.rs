@@ -72,6 +72,10 @@ enum Command {
         /// Run the daemon with `--rt` (SCHED_FIFO, locked memory, a pinned core).
         #[arg(long)]
         rt: bool,
+        /// Have the daemon write its tick-time histograms to FILE.csv when it stops (see `palpa
+        /// serve --timings`).
+        #[arg(long, value_name = "FILE.csv")]
+        timings: Option<PathBuf>,
         /// Show the session live to Foxglove on [HOST:]PORT (see `palpa serve --live`).
         #[cfg(feature = "live")]
         #[arg(long, value_name = "[HOST:]PORT", value_parser = palpa::record::live::address_argument)]
@@ -180,12 +184,13 @@ fn main() -> Result<()> {
             duration,
             scene,
             rt,
+            timings,
             #[cfg(feature = "live")]
             live,
         } => demo(
             duration,
             &scene,
-            rt,
+            (rt, timings.as_deref()),
             #[cfg(feature = "live")]
             live.as_deref(),
             #[cfg(not(feature = "live"))]
@@ -620,7 +625,12 @@ fn serve(args: ServeArgs) -> Result<()> {
 }
 
 #[cfg(feature = "ipc")]
-fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result<()> {
+fn demo(
+    duration: f64,
+    scene_name: &str,
+    (rt, timings): (bool, Option<&Path>),
+    live: Option<&str>,
+) -> Result<()> {
     use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
     use palpa::ipc::services::{create_node, stats_service};
     use std::io::{IsTerminal, Write};
@@ -648,15 +658,25 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
     let exe = std::env::current_exe().context("cannot find the palpa executable")?;
     let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}`) and {} simulated Geomagic Touch ({})",
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}{}`) and {} simulated Geomagic Touch ({})",
         if rt { " --rt" } else { "" },
+        timings
+            .map(|p| format!(" --timings {}", p.display()))
+            .unwrap_or_default(),
         live.map(|a| format!(" --live {a}")).unwrap_or_default(),
         devices.len(),
         tools.join(", ")
     );
-    let mut serve_args = vec!["serve", "--prefix", &prefix, scene_name];
+    let mut serve_args: Vec<std::ffi::OsString> = ["serve", "--prefix", &prefix, scene_name]
+        .into_iter()
+        .map(Into::into)
+        .collect();
     if rt {
-        serve_args.push("--rt");
+        serve_args.push("--rt".into());
+    }
+    if let Some(path) = timings {
+        serve_args.push("--timings".into());
+        serve_args.push(path.into());
     }
     if let Some(address) = live {
         #[cfg(feature = "live")]
@@ -668,7 +688,7 @@ fn demo(duration: f64, scene_name: &str, rt: bool, live: Option<&str>) -> Result
                 viewer_url(parsed)
             );
         }
-        serve_args.extend(["--live", address]);
+        serve_args.extend(["--live".into(), address.into()]);
     }
     let daemon = Process::new(&exe)
         .args(&serve_args)

@@ -418,8 +418,17 @@ fn demo_runs_daemon_and_device_together() {
 #[test]
 fn demo_drives_both_tools_of_the_laparoscopy_scene() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let timings = temp("demo-timings.csv");
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
-        .args(["demo", "--scene", "laparoscopy", "--duration", "2"])
+        .args([
+            "demo",
+            "--scene",
+            "laparoscopy",
+            "--duration",
+            "2",
+            "--timings",
+        ])
+        .arg(&timings)
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -452,6 +461,21 @@ fn demo_drives_both_tools_of_the_laparoscopy_scene() {
         assert!(touching > 50, "{line}");
     }
     assert!(text.contains("palpa serve: stopped after"), "{text}");
+    // `--timings` went on to the daemon: its histogram holds every tick it ran.
+    let ticks: u64 = text
+        .split("stopped after ")
+        .nth(1)
+        .and_then(|a| a.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    let csv = std::fs::read_to_string(&timings).unwrap();
+    let counted: u64 = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse::<u64>().unwrap())
+        .sum();
+    assert_eq!(counted, ticks, "{csv}");
+    let _ = std::fs::remove_file(&timings);
     // A scene name that is neither a file nor built in is refused, naming the built-in ones.
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args(["demo", "--scene", "no_such_scene"])
