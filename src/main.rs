@@ -467,6 +467,16 @@ fn serve(args: ServeArgs) -> Result<()> {
     use std::sync::atomic::{AtomicBool, Ordering};
 
     let scene = scene_from(args.scene.as_deref())?;
+    // The timings file is created before the run, so that a path that cannot be written is
+    // refused at once rather than after the session (it is written when the daemon stops).
+    let timings = match &args.timings {
+        Some(path) => Some((
+            path,
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create the timings file {}", path.display()))?,
+        )),
+        None => None,
+    };
     let options = ServeOptions {
         prefix: args.prefix.clone(),
         duration: args.duration,
@@ -608,8 +618,10 @@ fn serve(args: ServeArgs) -> Result<()> {
         summary.compute_p99_us,
         summary.compute_max_us
     );
-    if let Some(path) = &args.timings {
-        std::fs::write(path, summary.timings_csv())
+    if let Some((path, mut file)) = timings {
+        use std::io::Write;
+        file.write_all(summary.timings_csv().as_bytes())
+            .and_then(|()| file.flush())
             .with_context(|| format!("cannot write the timings to {}", path.display()))?;
     }
     if let Some(first) = &summary.first_ipc_error {
@@ -643,6 +655,11 @@ fn demo(
     }
     let prefix = format!("palpa_demo_{}", std::process::id());
     let scene = scene_from(Some(Path::new(scene_name)))?;
+    // A timings path the daemon could not write is refused here, before anything starts.
+    if let Some(path) = timings {
+        std::fs::File::create(path)
+            .with_context(|| format!("cannot create the timings file {}", path.display()))?;
+    }
     // The default organ keeps its hand-placed palpation; another scene gets a device per IPC tool.
     let devices = if scene.source == palpa::scene::DEFAULT_SCENE {
         vec![DeviceOptions::palpating_default_organ(&prefix, duration)]

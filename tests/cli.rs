@@ -181,6 +181,17 @@ fn numeric_options_refuse_zero_negative_and_non_finite_values() {
         assert!(t.contains(&format!("for '{option}")), "{t}");
         assert!(t.contains("expected [HOST:]PORT"), "{t}");
     }
+    // A timings file that cannot be created is refused before the daemon runs (not after the
+    // session, when the histograms are written).
+    for command in ["serve", "demo"] {
+        let out = palpa(&[command, "--timings", "/nonexistent-palpa-dir/t.csv"]);
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{command}: {t}");
+        assert!(
+            t.contains("cannot create the timings file /nonexistent-palpa-dir/t.csv"),
+            "{command}: {t}"
+        );
+    }
     for (option, value) in [("--duration", "0"), ("--duration", "NaN"), ("--wait", "-1")] {
         let out = Command::new(env!("CARGO_BIN_EXE_palpa-zenoh"))
             .args(["--listen", "tcp/127.0.0.1:0", option, value])
