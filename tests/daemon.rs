@@ -415,6 +415,15 @@ fn demo_runs_daemon_and_device_together() {
     assert!(text.contains("palpa serve: stopped after"), "{text}");
 }
 
+/// The whole number that follows the first `marker` in `text`.
+fn number_after(text: &str, marker: &str) -> u64 {
+    text.split(marker)
+        .nth(1)
+        .and_then(|a| a.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {marker:?}: {text}"))
+}
+
 #[test]
 fn demo_drives_both_tools_of_the_laparoscopy_scene() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
@@ -443,31 +452,16 @@ fn demo_drives_both_tools_of_the_laparoscopy_scene() {
             .lines()
             .find(|l| l.starts_with(&format!("palpa demo: {tool}: 2000 poses sent")))
             .unwrap_or_else(|| panic!("no report for {tool}: {text}"));
-        let answered: u64 = line
-            .split(", ")
-            .nth(1)
-            .and_then(|a| a.split(' ').next())
-            .and_then(|n| n.parse().ok())
-            .unwrap_or_else(|| panic!("{line}"));
+        let answered = number_after(line, "poses sent, ");
         assert!(answered > 1000, "{line}");
         // Each tool reaches tissue within the 2 s: the probe's first press bottoms out at 1 s,
         // the grasper's jaws close on the tube at 1.5 s.
-        let touching: u64 = line
-            .split("touching tissue in ")
-            .nth(1)
-            .and_then(|a| a.split(' ').next())
-            .and_then(|n| n.parse().ok())
-            .unwrap_or_else(|| panic!("{line}"));
+        let touching = number_after(line, "touching tissue in ");
         assert!(touching > 50, "{line}");
     }
     assert!(text.contains("palpa serve: stopped after"), "{text}");
     // `--timings` went on to the daemon: its histogram holds every tick it ran.
-    let ticks: u64 = text
-        .split("stopped after ")
-        .nth(1)
-        .and_then(|a| a.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("{text}"));
+    let ticks = number_after(&text, "stopped after ");
     let csv = std::fs::read_to_string(&timings).unwrap();
     let counted: u64 = csv
         .lines()

@@ -241,6 +241,18 @@ impl BodyContactScratch {
     }
 }
 
+impl BodyContactScratch {
+    /// Each body's bounds swept over the tick with no margin, whether they meet another body's,
+    /// and its largest node displacement ([`bodies_near`]); returns whether any pair meets.
+    fn find_bounds(&mut self, bodies: &[Body], group: &[usize]) -> bool {
+        bodies_near(
+            bodies,
+            group,
+            (&mut self.bounds, &mut self.near, &mut self.max_motion),
+        )
+    }
+}
+
 /// What the response of this tick leaves for the collision net, which runs right after it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Prepared {
@@ -405,16 +417,7 @@ pub fn resolve_body_collisions(
                 scratch.near.iter_mut().for_each(|n| *n = false);
                 mark_near(group, &scratch.bounds, &mut scratch.near)
             } else {
-                bodies_near(
-                    bodies,
-                    group,
-                    0.0,
-                    (
-                        &mut scratch.bounds,
-                        &mut scratch.near,
-                        &mut scratch.max_motion,
-                    ),
-                )
+                scratch.find_bounds(bodies, group)
             };
             if !any {
                 break;
@@ -690,16 +693,7 @@ pub fn respond_to_body_contacts(
     scratch.contacts.clear();
     // The bounds with no margin (kept for the net), then grown by the skin: the bodies near within
     // the skin are those whose grown bounds meet.
-    bodies_near(
-        bodies,
-        group,
-        0.0,
-        (
-            &mut scratch.bounds,
-            &mut scratch.near,
-            &mut scratch.max_motion,
-        ),
-    );
+    scratch.find_bounds(bodies, group);
     scratch.tight_bounds.clear();
     scratch.tight_bounds.extend_from_slice(&scratch.bounds);
     for (k, aabb) in scratch.bounds.iter_mut().enumerate() {
@@ -912,13 +906,12 @@ pub fn respond_to_body_contacts(
     counters
 }
 
-/// Each body's bounds swept over the tick (start and end positions) grown by `margin`, and whether
-/// they meet those of another body not of its group. Returns whether any pair meets. One pass over
-/// the nodes: bodies apart cost this and nothing more.
+/// Each body's bounds swept over the tick (start and end positions), whether they meet those of
+/// another body not of its group, and its nodes' largest displacement over the tick. Returns
+/// whether any pair meets. One pass over the nodes: bodies apart cost this and nothing more.
 fn bodies_near(
     bodies: &[Body],
     group: &[usize],
-    margin: f64,
     (bounds, near, max_motion): (&mut Vec<Aabb>, &mut Vec<bool>, &mut Vec<f64>),
 ) -> bool {
     bounds.clear();
@@ -933,7 +926,6 @@ fn bodies_near(
             aabb.max = aabb.max.sup(&p.sup(q));
             largest = largest.max((q - p).norm_squared());
         }
-        aabb.inflate(margin);
         bounds.push(aabb);
         near.push(false);
         max_motion.push(largest.sqrt());
