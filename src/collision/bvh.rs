@@ -184,13 +184,12 @@ impl TriangleBvh {
         self.clear_moved();
         if per_node {
             self.node_boxes.clear();
-            self.node_boxes
-                .extend(start[..nodes].iter().zip(&end[..nodes]).map(|(s, e)| {
-                    let mut own = Aabb::empty();
-                    own.include(s);
-                    own.include(e);
-                    own
-                }));
+            self.node_boxes.extend(
+                start[..nodes]
+                    .iter()
+                    .zip(&end[..nodes])
+                    .map(|(s, e)| Aabb::of_pair(s, e)),
+            );
         }
         for k in (0..self.nodes.len()).rev() {
             let node = self.nodes[k];
@@ -198,32 +197,33 @@ impl TriangleBvh {
             if node.count > 0 {
                 let first = node.first_or_left as usize;
                 for &t in &self.order[first..first + node.count as usize] {
-                    let mut own = Aabb::empty();
-                    for &v in &triangles[t as usize] {
-                        if per_node {
-                            let b = &self.node_boxes[v as usize];
-                            own.min = own.min.inf(&b.min);
-                            own.max = own.max.sup(&b.max);
-                        } else {
+                    let corners = &triangles[t as usize];
+                    let mut own = if per_node {
+                        triangle_box(&self.node_boxes, corners)
+                    } else {
+                        let mut own = Aabb::empty();
+                        for &v in corners {
                             own.include(&start[v as usize]);
                             own.include(&end[v as usize]);
                         }
-                    }
+                        own
+                    };
                     own.inflate(margin);
                     self.triangle_boxes[t as usize] = own;
-                    aabb.min = aabb.min.inf(&own.min);
-                    aabb.max = aabb.max.sup(&own.max);
+                    aabb.merge(&own);
                 }
             } else {
-                let (l, r) = (
-                    self.nodes[node.first_or_left as usize].aabb,
-                    self.nodes[node.right as usize].aabb,
-                );
-                aabb.min = l.min.inf(&r.min);
-                aabb.max = l.max.sup(&r.max);
+                aabb = self.children_box(&node);
             }
             self.nodes[k].aabb = aabb;
         }
+    }
+
+    /// The box of an inner node's two children.
+    fn children_box(&self, node: &Node) -> Aabb {
+        let mut aabb = self.nodes[node.first_or_left as usize].aabb;
+        aabb.merge(&self.nodes[node.right as usize].aabb);
+        aabb
     }
 
     /// Records that node `v`'s end of tick moved since the last refit (once per node; a node beyond
@@ -263,10 +263,7 @@ impl TriangleBvh {
         }
         for &v in &self.moved {
             let v = v as usize;
-            let mut own = Aabb::empty();
-            own.include(&start[v]);
-            own.include(&end[v]);
-            self.node_boxes[v] = own;
+            self.node_boxes[v] = Aabb::of_pair(&start[v], &end[v]);
         }
         self.dirty.clear();
         self.dirty.resize(self.nodes.len(), false);
@@ -281,33 +278,20 @@ impl TriangleBvh {
                     if !corners.iter().any(|&v| moved(v)) {
                         continue;
                     }
-                    let mut own = Aabb::empty();
-                    for &v in &corners {
-                        let b = &self.node_boxes[v as usize];
-                        own.min = own.min.inf(&b.min);
-                        own.max = own.max.sup(&b.max);
-                    }
-                    self.triangle_boxes[t as usize] = own;
+                    self.triangle_boxes[t as usize] = triangle_box(&self.node_boxes, &corners);
                     changed = true;
                 }
                 if changed {
                     let mut aabb = Aabb::empty();
                     for &t in &self.order[first..first + node.count as usize] {
-                        let own = &self.triangle_boxes[t as usize];
-                        aabb.min = aabb.min.inf(&own.min);
-                        aabb.max = aabb.max.sup(&own.max);
+                        aabb.merge(&self.triangle_boxes[t as usize]);
                     }
                     self.nodes[k].aabb = aabb;
                     self.dirty[k] = true;
                 }
-            } else {
-                let (l, r) = (node.first_or_left as usize, node.right as usize);
-                if self.dirty[l] || self.dirty[r] {
-                    let (l, r) = (self.nodes[l].aabb, self.nodes[r].aabb);
-                    self.nodes[k].aabb.min = l.min.inf(&r.min);
-                    self.nodes[k].aabb.max = l.max.sup(&r.max);
-                    self.dirty[k] = true;
-                }
+            } else if self.dirty[node.first_or_left as usize] || self.dirty[node.right as usize] {
+                self.nodes[k].aabb = self.children_box(&node);
+                self.dirty[k] = true;
             }
         }
         self.clear_moved();
@@ -408,6 +392,15 @@ impl TriangleBvh {
         }
         true
     }
+}
+
+/// The box of a triangle with `corners`, from its nodes' boxes.
+fn triangle_box(node_boxes: &[Aabb], corners: &[u32; 3]) -> Aabb {
+    let mut own = Aabb::empty();
+    for &v in corners {
+        own.merge(&node_boxes[v as usize]);
+    }
+    own
 }
 
 /// Builds the subtree over `order[begin..end]` and returns its node index.

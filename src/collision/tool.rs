@@ -229,6 +229,20 @@ impl Aabb {
         self.max = self.max.sup(p);
     }
 
+    /// Grows to contain `other`.
+    pub fn merge(&mut self, other: &Aabb) {
+        self.min = self.min.inf(&other.min);
+        self.max = self.max.sup(&other.max);
+    }
+
+    /// The box of the points `p` and `q` (a point's sweep over a tick).
+    pub fn of_pair(p: &Vec3, q: &Vec3) -> Self {
+        Self {
+            min: p.inf(q),
+            max: p.sup(q),
+        }
+    }
+
     /// Grows by `margin` on every side.
     pub fn inflate(&mut self, margin: f64) {
         self.min -= Vec3::repeat(margin);
