@@ -704,8 +704,11 @@ pub fn respond_to_body_contacts(
         return counters;
     }
     // The hierarchies are refitted with no margin (the collision net's boxes, kept for it) and
-    // the queries grown by the skin twice instead: the same boxes meet, but where their gap is
-    // twice the skin, to rounding — far beyond any contact (within the skin, or crossing).
+    // the queries grown by the skin: a vertex (edge) within the skin of a face (edge) at the end
+    // of the tick has its swept box within the skin of that face's (edge's) box, and a vertex
+    // that crossed the inside of a face over the tick has a swept box meeting the face's. (A
+    // vertex ending deeper than the skin behind a face it did not cross inside is left to the
+    // collision net, which stops it: no pass-through either way.)
     scratch.fitted.clear();
     for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
         if scratch.near[k] {
@@ -737,15 +740,15 @@ pub fn respond_to_body_contacts(
                 continue;
             }
             let other = scratch.tight_bounds[j];
-            let mut reach = scratch.bounds[j];
-            reach.inflate(CONTACT_SKIN);
+            // Body i's triangles within the skin of body j's bounds (already grown by it): those
+            // of every vertex and edge whose grown swept box meets body j's bounds.
+            let reach = scratch.bounds[j];
             scratch.near_triangles.clear();
             if !scratch.bvhs[i].query(&reach, &mut scratch.near_triangles) {
                 counters.overflows += 1;
             }
             let swept = |nodes: &[usize]| {
                 let mut aabb = swept_box(&bodies[i], nodes);
-                aabb.inflate(CONTACT_SKIN);
                 aabb.inflate(CONTACT_SKIN);
                 aabb
             };
