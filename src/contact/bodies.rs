@@ -673,8 +673,10 @@ fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
 /// opposite. Solved by sweeps over the contacts in a fixed order with accumulated impulses (normal
 /// ≥ 0, tangential within μ times the normal; μ = √(μ_a μ_b) from the two bodies' `friction`). A
 /// vertex may close the gap it had at the start of the tick down to half the skin and no more; end
-/// positions closer than that are parted by a fifth of the shortfall (positions only). Run before the collision
-/// net ([`resolve_body_collisions`]), which still guarantees no pass-through.
+/// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
+/// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
+/// with its displacement's velocity. Run before the collision net ([`resolve_body_collisions`]),
+/// which still guarantees no pass-through.
 pub fn respond_to_body_contacts(
     bodies: &mut [Body],
     group: &[usize],
@@ -849,31 +851,33 @@ pub fn respond_to_body_contacts(
         scratch.contact_nodes.push(nodes);
     }
     counters.contacts = scratch.contacts.len() as u32;
-    // Two solves with the same contacts: the displacements over the tick (where the nodes end: no
-    // approach past the rest distance, no slip where friction holds; the impulses change the end
-    // velocities alike), then the end velocities along the normals only (a node the multi-rate
-    // scheme sub-stepped can end the tick with a velocity into the contact that its displacement
-    // does not show; left, it would stay in the node without moving it). Each impulse changes the
-    // pair's momentum by equal and opposite amounts.
+    // The displacements over the tick (where the nodes end: no approach past the rest distance,
+    // no slip where friction holds; the impulses change the end velocities alike). Each impulse
+    // changes the pair's momentum by equal and opposite amounts.
     solve(
         bodies,
         (&mut scratch.contacts, &scratch.contact_nodes),
         (&mut scratch.forces, &mut scratch.work),
         dt,
-        Solve::Displacement,
     );
-    for c in scratch.contacts.iter_mut() {
-        c.gap = c.relative(|r| end_of(bodies, r)).dot(&c.normal);
-        c.normal_impulse = 0.0;
-        c.tangent_impulse = Vec3::zeros();
+    // A node the response pushed ends the tick with its displacement's velocity, (end − start) / Δt
+    // (symplectic Euler's own relation): the velocity a sub-stepped node ended its sub-steps
+    // with, into the contact or along it, would otherwise stay in it without moving it — kinetic
+    // energy that is not motion, pushed back every tick.
+    for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
+        if c.normal_impulse <= 0.0 {
+            continue;
+        }
+        for k in 0..nodes.count {
+            if nodes.inverse_masses[k] == 0.0 {
+                continue;
+            }
+            let r = nodes.refs[k];
+            let s = &mut bodies[r.body].surface;
+            s.velocity_in_world[r.node] =
+                (s.next_position_in_world[r.node] - s.position_in_world[r.node]) / dt;
+        }
     }
-    solve(
-        bodies,
-        (&mut scratch.contacts, &scratch.contact_nodes),
-        (&mut scratch.forces, &mut scratch.work),
-        dt,
-        Solve::Velocity,
-    );
     // Positions closer than the rest distance at the end of the tick are parted by a fraction of
     // the shortfall, shared like an impulse (the pair's mass-weighted centre does not move).
     for k in 0..scratch.contacts.len() {
@@ -1012,16 +1016,6 @@ fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
     aabb
 }
 
-/// What a solve of the contact response acts on.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Solve {
-    /// The displacements over the tick (end positions and velocities alike), with friction; `gap`
-    /// is the start-of-tick gap.
-    Displacement,
-    /// The end velocities along the normals; `gap` is the end-of-tick gap.
-    Velocity,
-}
-
 /// Sweeps over `contacts` in order with accumulated impulses (normal ≥ 0, tangential within the
 /// Coulomb cone): a contact may close its gap down to the rest distance over a step and no more,
 /// and does not slip where friction holds.
@@ -1030,21 +1024,13 @@ fn solve(
     (contacts, contact_nodes): (&mut [Contact], &[ContactNodes]),
     (forces, work): (&mut [Vec3], &mut [f64]),
     dt: f64,
-    what: Solve,
 ) {
     for _ in 0..SOLVER_ITERATIONS {
         for (c, nodes) in contacts.iter_mut().zip(contact_nodes) {
             if c.compliance <= 0.0 {
                 continue;
             }
-            let relative = match what {
-                Solve::Displacement => {
-                    nodes.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt)
-                }
-                Solve::Velocity => {
-                    nodes.relative(|r| bodies[r.body].surface.velocity_in_world[r.node])
-                }
-            };
+            let relative = nodes.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt);
             // Normal: close the gap down to the rest distance, no more (closer than that: stop
             // closing; the positions are parted afterwards).
             let target = ((REST_DISTANCE - c.gap) / dt).min(0.0);
@@ -1056,12 +1042,7 @@ fn solve(
             let after = relative + c.normal * (normal_change * c.compliance);
             let slip = after - c.normal * after.dot(&c.normal);
             let mut tangent = c.tangent_impulse - slip / c.compliance;
-            let friction = if what == Solve::Displacement {
-                c.friction
-            } else {
-                0.0
-            };
-            let limit = friction * c.normal_impulse;
+            let limit = c.friction * c.normal_impulse;
             let size = tangent.norm();
             if size > limit {
                 tangent *= limit / size;
@@ -1072,20 +1053,13 @@ fn solve(
             if impulse == Vec3::zeros() {
                 continue;
             }
-            apply_impulse(
-                bodies,
-                nodes,
-                &impulse,
-                (&mut *forces, &mut *work),
-                dt,
-                what,
-            );
+            apply_impulse(bodies, nodes, &impulse, (&mut *forces, &mut *work), dt);
         }
     }
 }
 
 /// Applies `impulse` to a contact's side a and, opposite, to side b, with their weights: the end
-/// velocities change, and (a displacement solve) the end positions with them. The body takes its
+/// velocities change, and the end positions with them. The body takes its
 /// share of the impulse; a node a tool moves passes it on to the tool (its motion is the tool's).
 fn apply_impulse(
     bodies: &mut [Body],
@@ -1093,7 +1067,6 @@ fn apply_impulse(
     impulse: &Vec3,
     (forces, work): (&mut [Vec3], &mut [f64]),
     dt: f64,
-    what: Solve,
 ) {
     for i in 0..nodes.count {
         let (r, w, inverse_mass) = (nodes.refs[i], nodes.weights[i], nodes.inverse_masses[i]);
@@ -1106,9 +1079,7 @@ fn apply_impulse(
         }
         let dv = impulse * (w * inverse_mass);
         let s = &mut bodies[r.body].surface;
-        if what == Solve::Displacement {
-            s.next_position_in_world[r.node] += dv * dt;
-        }
+        s.next_position_in_world[r.node] += dv * dt;
         s.velocity_in_world[r.node] += dv;
     }
 }
