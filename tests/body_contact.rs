@@ -463,3 +463,51 @@ fn four_stacked_organs_never_enter_each_other_and_the_guard_stays_quiet() {
     assert!(squashed < 0.02, "{squashed}");
     assert_eq!(events, [0, 0, 0, 0]);
 }
+
+/// Stacking: four flat organs (10 × 10 × 2 cm) laid one on another on the table stay stacked, in
+/// their order, and come to rest (kinetic energy below 1e-5 J at 3.5 s); no node of one is ever
+/// inside another. (The four thicker organs of the test above topple, as rigid ones would: the three
+/// upper ones' centre of mass stands 4.5 cm over the lowest contact, above the 3 cm a rigid stack
+/// of those ellipsoids stays upright with along their short axis — 1/h < 1/ρ₁ + 1/ρ₂, ρ = b²/c =
+/// 6 cm; flat organs have ρ = 25 cm.)
+#[test]
+fn four_flat_organs_stacked_stay_stacked_and_come_to_rest() {
+    let mut text = String::from(
+        "[world]\nair_viscosity = 1.0\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
+    );
+    for k in 0..4 {
+        text += &format!(
+            "[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.05, 0.05, 0.01], subdivisions = 2 }} }}\nposition = [0.0, 0.0, {}]\nsurface_mass = 0.1\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
+            0.0105 + k as f64 * 0.0205
+        );
+    }
+    let mut world = World::from_scene(&common::scene(&text));
+    for k in 1..=3500 {
+        world.step();
+        if k % 50 == 0 {
+            assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
+        }
+    }
+    let centres: Vec<_> = world
+        .bodies
+        .iter()
+        .map(|b| b.surface_centre_of_mass())
+        .collect();
+    let kinetic: f64 = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
+    let drift = centres
+        .iter()
+        .map(|c| c.xy().norm())
+        .fold(0.0f64, f64::max);
+    println!(
+        "four flat organs stacked: centres at heights {:.1?} mm, largest horizontal drift {:.1} mm, kinetic energy {kinetic:.2e} J at 3.5 s, guard events {:?}",
+        centres.iter().map(|c| c.z * 1e3).collect::<Vec<_>>(),
+        drift * 1e3,
+        world.guards.iter().map(|g| g.events).collect::<Vec<_>>()
+    );
+    for pair in centres.windows(2) {
+        // Each organ above the one it was laid on, by more than half an organ's rest thickness.
+        assert!(pair[1].z > pair[0].z + 0.01, "out of order: {centres:?}");
+    }
+    assert!(drift < 0.01, "the stack came apart: {centres:?}");
+    assert!(kinetic < 1e-5, "still moving: {kinetic} J");
+}
