@@ -494,10 +494,7 @@ fn four_flat_organs_stacked_stay_stacked_and_come_to_rest() {
         .map(|b| b.surface_centre_of_mass())
         .collect();
     let kinetic: f64 = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
-    let drift = centres
-        .iter()
-        .map(|c| c.xy().norm())
-        .fold(0.0f64, f64::max);
+    let drift = centres.iter().map(|c| c.xy().norm()).fold(0.0f64, f64::max);
     println!(
         "four flat organs stacked: centres at heights {:.1?} mm, largest horizontal drift {:.1} mm, kinetic energy {kinetic:.2e} J at 3.5 s, guard events {:?}",
         centres.iter().map(|c| c.z * 1e3).collect::<Vec<_>>(),
