@@ -217,40 +217,7 @@ fn an_organ_resting_on_another_and_pressed_stays_and_comes_to_rest() {
 }
 
 fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
-    // A flat organ laid on a wider one resting on the table.
-    let organs = r#"
-        [world]
-        gravity = [0.0, 0.0, -9.81]
-        air_viscosity = 1.0
-        integrator = "INTEGRATOR"
-        [[body]]
-        name = "lower"
-        mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.03]
-        surface_mass = 0.3
-        rigid_mass = 1.0
-        surface_stiffness = 200.0
-        surface_damping = 0.1
-        link_stiffness = 400.0
-        link_damping = 0.5
-        friction = 0.4
-        [[body]]
-        name = "upper"
-        mesh = { ellipsoid = { radii = [0.04, 0.03, 0.015], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.0765]
-        surface_mass = 0.1
-        rigid_mass = 0.2
-        surface_stiffness = 100.0
-        surface_damping = 0.05
-        link_stiffness = 200.0
-        link_damping = 0.3
-        friction = 0.4
-        [[obstacle]]
-        name = "table"
-        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-        friction = 0.5
-        static_friction = 0.7
-    "#;
+    let organs = organ_on_organ(integrator, 0.2);
     let probe = r#"
         [[tool]]
         name = "probe"
@@ -263,7 +230,6 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
           { t = 2.5, position = [0.0, 0.0, 0.2] },
         ]
     "#;
-    let organs = organs.replace("INTEGRATOR", integrator);
     let mut world = World::from_scene(&common::scene(&format!("{organs}\n{probe}")));
     let gravity = world.params.gravity;
     let mut energy_before_probe = 0.0;
@@ -345,41 +311,7 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
 #[test]
 fn a_heavy_organ_resting_on_another_keeps_no_velocity_that_does_not_move_it() {
     for integrator in ["multirate", "implicit"] {
-        let text = format!(
-            r#"
-            [world]
-            gravity = [0.0, 0.0, -9.81]
-            air_viscosity = 1.0
-            integrator = "{integrator}"
-            [[body]]
-            name = "lower"
-            mesh = {{ ellipsoid = {{ radii = [0.07, 0.05, 0.03], subdivisions = 2 }} }}
-            position = [0.0, 0.0, 0.03]
-            surface_mass = 0.3
-            rigid_mass = 1.0
-            surface_stiffness = 200.0
-            surface_damping = 0.1
-            link_stiffness = 400.0
-            link_damping = 0.5
-            friction = 0.4
-            [[body]]
-            name = "upper"
-            mesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = 2 }} }}
-            position = [0.0, 0.0, 0.0765]
-            surface_mass = 0.1
-            rigid_mass = 2.0
-            surface_stiffness = 100.0
-            surface_damping = 0.05
-            link_stiffness = 200.0
-            link_damping = 0.3
-            friction = 0.4
-            [[obstacle]]
-            name = "table"
-            plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
-            friction = 0.5
-            static_friction = 0.7
-        "#
-        );
+        let text = organ_on_organ(integrator, 2.0);
         let mut world = World::from_scene(&common::scene(&text));
         let dt = world.params.dt;
         let mut before: Vec<Vec<palpa::Vec3>> = world
@@ -433,15 +365,7 @@ fn four_stacked_organs_never_enter_each_other_and_the_guard_stays_quiet() {
     // above it — elastic energy it receives from them through the contact. That energy is work from
     // outside the body for its divergence guard (as a tool's is): the guard must not take it for a
     // divergence and snap the organ back to its rest shape, into the organ on top of it.
-    let mut text = String::from(
-        "[world]\nair_viscosity = 1.0\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
-    );
-    for k in 0..4 {
-        text += &format!(
-            "[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = 2 }} }}\nposition = [0.0, 0.0, {}]\nsurface_mass = 0.1\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
-            0.0155 + k as f64 * 0.0305
-        );
-    }
+    let text = stack_of_four([0.04, 0.03, 0.015], 0.0155, 0.0305);
     let mut world = World::from_scene(&common::scene(&text));
     let mut squashed: f64 = f64::INFINITY;
     for k in 1..=1500 {
@@ -472,15 +396,7 @@ fn four_stacked_organs_never_enter_each_other_and_the_guard_stays_quiet() {
 /// 6 cm; flat organs have ρ = 25 cm.)
 #[test]
 fn four_flat_organs_stacked_stay_stacked_and_come_to_rest() {
-    let mut text = String::from(
-        "[world]\nair_viscosity = 1.0\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
-    );
-    for k in 0..4 {
-        text += &format!(
-            "[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.05, 0.05, 0.01], subdivisions = 2 }} }}\nposition = [0.0, 0.0, {}]\nsurface_mass = 0.1\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
-            0.0105 + k as f64 * 0.0205
-        );
-    }
+    let text = stack_of_four([0.05, 0.05, 0.01], 0.0105, 0.0205);
     let mut world = World::from_scene(&common::scene(&text));
     for k in 1..=3500 {
         world.step();
@@ -507,4 +423,60 @@ fn four_flat_organs_stacked_stay_stacked_and_come_to_rest() {
     }
     assert!(drift < 0.01, "the stack came apart: {centres:?}");
     assert!(kinetic < 1e-5, "still moving: {kinetic} J");
+}
+
+/// A flat organ (8 × 6 × 3 cm, 0.1 kg surface, `upper_rigid_mass` rigid) laid on the middle of a
+/// wider one (14 × 10 × 6 cm) resting on the table, both with `integrator`.
+fn organ_on_organ(integrator: &str, upper_rigid_mass: f64) -> String {
+    format!(
+        r#"
+        [world]
+        gravity = [0.0, 0.0, -9.81]
+        air_viscosity = 1.0
+        integrator = "{integrator}"
+        [[body]]
+        name = "lower"
+        mesh = {{ ellipsoid = {{ radii = [0.07, 0.05, 0.03], subdivisions = 2 }} }}
+        position = [0.0, 0.0, 0.03]
+        surface_mass = 0.3
+        rigid_mass = 1.0
+        surface_stiffness = 200.0
+        surface_damping = 0.1
+        link_stiffness = 400.0
+        link_damping = 0.5
+        friction = 0.4
+        [[body]]
+        name = "upper"
+        mesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = 2 }} }}
+        position = [0.0, 0.0, 0.0765]
+        surface_mass = 0.1
+        rigid_mass = {upper_rigid_mass:?}
+        surface_stiffness = 100.0
+        surface_damping = 0.05
+        link_stiffness = 200.0
+        link_damping = 0.3
+        friction = 0.4
+        [[obstacle]]
+        name = "table"
+        plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+        friction = 0.5
+        static_friction = 0.7
+    "#
+    )
+}
+
+/// Four organs (ellipsoids of `radii`) stacked on the table, the lowest centred at `bottom` (m)
+/// and each `spacing` (m) above the one below.
+fn stack_of_four(radii: [f64; 3], bottom: f64, spacing: f64) -> String {
+    let mut text = String::from(
+        "[world]\nair_viscosity = 1.0\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
+    );
+    let [a, b, c] = radii;
+    for k in 0..4 {
+        text += &format!(
+            "[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [{a:?}, {b:?}, {c:?}], subdivisions = 2 }} }}\nposition = [0.0, 0.0, {:?}]\nsurface_mass = 0.1\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
+            bottom + k as f64 * spacing
+        );
+    }
+    text
 }
