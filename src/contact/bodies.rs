@@ -608,7 +608,10 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
     let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
     let (low_a, high_a) = (a0.inf(&a1), a0.sup(&a1));
     let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
-    if (0..3).any(|k| low_b[k] - high_a[k] > reach || low_a[k] - high_b[k] > reach) {
+    let apart = (0..3).fold(false, |apart, k| {
+        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
+    });
+    if apart || !nearest_inside_a(&a0, &a1, &b0, &b1) {
         return None;
     }
     let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
@@ -657,6 +660,31 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
         normal_impulse: 0.0,
         tangent_impulse: Vec3::zeros(),
     })
+}
+
+/// False when the nearest points of segments (a0, a1) and (b0, b1) that
+/// [`segment_segment_closest`] finds are certainly not inside segment a: the numerator of its first
+/// parameter on the lines, `b f − c e`, is not between 0 and its denominator (the parameter it
+/// divides out would then be clamped to an end, and stays at an end whatever follows). The same
+/// operations as that function's up to its division, so the answer agrees with it to the bit, with
+/// no division on the pairs it turns down (most of a stack's).
+#[inline]
+fn nearest_inside_a(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
+    let d1 = a1 - a0;
+    let d2 = b1 - b0;
+    let r = a0 - b0;
+    let a = d1.norm_squared();
+    let e = d2.norm_squared();
+    let tiny = f64::MIN_POSITIVE;
+    if a <= tiny || e <= tiny {
+        return true;
+    }
+    let (b, c, f) = (d1.dot(&d2), d1.dot(&r), d2.dot(&r));
+    let denominator = a * e - b * b;
+    let numerator = b * f - c * e;
+    // denominator ≤ 0: s = 0. Otherwise numerator / denominator rounds to ≤ 0 when the numerator
+    // is ≤ 0, and to ≥ 1 when it is ≥ the denominator (rounding is monotone).
+    denominator > 0.0 && numerator > 0.0 && numerator < denominator
 }
 
 /// Inverse mass of a node for the contact response: 0 for a node a tool moves.
