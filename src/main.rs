@@ -346,6 +346,7 @@ fn run(
 ) -> Result<()> {
     let scene = scene_from(path)?;
     let mut world = World::from_scene(&scene);
+    warn_of_crossings(&world, "warning: ");
     let ticks = (duration / world.params.dt).round() as u64;
     let mut out = match trace {
         Some(p) => {
@@ -498,6 +499,7 @@ fn serve(args: ServeArgs) -> Result<()> {
     ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
         .context("cannot install the Ctrl-C/SIGTERM handler")?;
     let world = World::from_scene(&scene);
+    warn_of_crossings(&world, "warning: ");
     let tools: Vec<&str> = world
         .tools
         .iter()
@@ -817,6 +819,36 @@ fn demo(
     Ok(())
 }
 
+/// One line per pair of bodies whose surfaces cross where they start (see
+/// [`World::crossing_surfaces`]).
+fn crossing_lines(world: &World) -> Vec<String> {
+    world
+        .crossing_surfaces()
+        .iter()
+        .map(|c| {
+            let p = c.at_in_world;
+            format!(
+                "bodies `{}` and `{}` start with their surfaces crossing ({} triangle pairs, one at \
+                 [{:.4}, {:.4}, {:.4}] m): contact between bodies keeps surfaces from passing \
+                 through each other, so it cannot part them — place them apart",
+                world.bodies[c.bodies.0].name,
+                world.bodies[c.bodies.1].name,
+                c.triangle_pairs,
+                p.x,
+                p.y,
+                p.z
+            )
+        })
+        .collect()
+}
+
+/// Prints [`crossing_lines`] on the standard error, each after `prefix`.
+fn warn_of_crossings(world: &World, prefix: &str) {
+    for line in crossing_lines(world) {
+        eprintln!("{prefix}{line}");
+    }
+}
+
 fn check(path: Option<&Path>) -> Result<()> {
     let scene = scene_from(path)?;
     let world = World::from_scene(&scene);
@@ -871,6 +903,9 @@ fn check(path: Option<&Path>) -> Result<()> {
             scene.bodies[a.body].name,
             a.to.map_or("the world", |o| scene.bodies[o].name.as_str()),
         );
+    }
+    for line in crossing_lines(&world) {
+        println!("  warning: {line}");
     }
     println!("  systems: {}", world.systems().names().join(", "));
     println!("  stability under the paper's scheme (semi-implicit Euler), per body:");

@@ -916,6 +916,13 @@ impl World {
             .map_or(&[], |s| &s.forces[..s.forces.len().min(self.bodies.len())])
     }
 
+    /// The pairs of bodies whose surfaces cross where they are now (pieces of one cut body not
+    /// compared): at the start of a session, a scene mistake that contact between bodies cannot
+    /// mend — see [`crate::contact::overlap`]. Allocates; not for the tick.
+    pub fn crossing_surfaces(&self) -> Vec<crate::contact::overlap::Crossing> {
+        crate::contact::overlap::crossing_surfaces(&self.bodies, &self.origin)
+    }
+
     /// Advances the world by one time step. Allocates nothing.
     ///
     /// Stages: tools move to their pose for the end of the tick; then per body forces → contact

@@ -425,6 +425,44 @@ fn four_flat_organs_stacked_stay_stacked_and_come_to_rest() {
     assert!(kinetic < 1e-5, "still moving: {kinetic} J");
 }
 
+/// Organs placed with their surfaces crossing are found by `World::crossing_surfaces` (what
+/// `palpa check`, `run` and `serve` warn of), pair by pair, where the test's own search of every
+/// edge against every triangle finds crossings; stacked 0.5 mm apart, none is. And crossed surfaces
+/// stay crossed: contact between bodies keeps surfaces from passing through each other, so it
+/// cannot part them — why such a scene is warned of.
+#[test]
+fn organs_placed_crossing_are_found_pair_by_pair_and_stay_crossed() {
+    let radii = [0.04, 0.03, 0.015];
+    let apart = World::from_scene(&common::scene(&stack_of_four(radii, 0.0155, 0.0305)));
+    assert!(
+        apart.crossing_surfaces().is_empty(),
+        "{:?}",
+        apart.crossing_surfaces()
+    );
+    assert_eq!(common::surfaces_crossing(&apart), 0);
+    // 4 mm into each other.
+    let mut crossed = World::from_scene(&common::scene(&stack_of_four(radii, 0.0155, 0.026)));
+    let found = crossed.crossing_surfaces();
+    let pairs: Vec<(usize, usize)> = found.iter().map(|c| c.bodies).collect();
+    assert_eq!(pairs, [(0, 1), (1, 2), (2, 3)], "{found:?}");
+    for c in &found {
+        // Where the lower organ's top meets the upper one's bottom.
+        let (lower, upper) = (
+            0.0155 + c.bodies.0 as f64 * 0.026,
+            0.0155 + c.bodies.1 as f64 * 0.026,
+        );
+        let z = c.at_in_world.z;
+        assert!(z > lower && z < upper, "{c:?}");
+        assert!(c.triangle_pairs > 0);
+    }
+    assert!(common::surfaces_crossing(&crossed) > 0);
+    for _ in 0..500 {
+        crossed.step();
+    }
+    assert!(!crossed.crossing_surfaces().is_empty());
+    assert!(common::surfaces_crossing(&crossed) > 0);
+}
+
 /// A flat organ (8 × 6 × 3 cm, 0.1 kg surface, `upper_rigid_mass` rigid) laid on the middle of a
 /// wider one (14 × 10 × 6 cm) resting on the table, both with `integrator`.
 fn organ_on_organ(integrator: &str, upper_rigid_mass: f64) -> String {

@@ -46,6 +46,53 @@ fn check_lists_systems_and_the_stability_margin() {
 }
 
 #[test]
+fn check_and_run_warn_of_bodies_placed_with_their_surfaces_crossing() {
+    let dir = std::env::temp_dir().join(format!("palpa-cli-crossing-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let organ = |name: &str, z: f64| {
+        format!(
+            "[[body]]\nname = \"{name}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = 2 }} }}\nposition = [0.0, 0.0, {z:?}]\n"
+        )
+    };
+    let crossing = dir.join("crossing.toml");
+    std::fs::write(
+        &crossing,
+        format!(
+            "{}{}{}",
+            organ("lower", 0.0155),
+            organ("upper", 0.04),
+            organ("aside", 0.0).replace("[0.0, 0.0, 0.0]", "[0.2, 0.0, 0.0155]")
+        ),
+    )
+    .unwrap();
+    let path = crossing.to_str().unwrap();
+    let out = palpa(&["check", path]);
+    let t = text(&out);
+    assert!(out.status.success(), "{t}");
+    assert!(
+        t.contains("warning: bodies `lower` and `upper` start with their surfaces crossing"),
+        "{t}"
+    );
+    assert!(!t.contains("`aside`"), "{t}");
+    let out = palpa(&["run", path, "--duration", "0.01"]);
+    let t = text(&out);
+    assert!(
+        t.contains("warning: bodies `lower` and `upper` start with their surfaces crossing"),
+        "{t}"
+    );
+    // Apart: no warning.
+    let apart = dir.join("apart.toml");
+    std::fs::write(
+        &apart,
+        format!("{}{}", organ("lower", 0.0155), organ("upper", 0.05)),
+    )
+    .unwrap();
+    let t = text(&palpa(&["check", apart.to_str().unwrap()]));
+    assert!(!t.contains("surfaces crossing"), "{t}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn check_warns_before_a_scene_diverges() {
     // Light nodes and stiff springs: the paper's trap. The warning comes before any run; the run
     // then really diverges and says so with a non-zero exit.

@@ -3,4 +3,5 @@
 
 pub mod bodies;
 pub mod obstacle;
+pub mod overlap;
 pub mod tool;
