@@ -187,6 +187,10 @@ pub struct BodyContactScratch {
     fitted: Vec<bool>,
     /// Each body's largest node displacement over the tick (m), at least.
     max_motion: Vec<f64>,
+    /// Per body and node, 1 + the last round of the collision net that answered a collision of
+    /// the node this tick (0: none), with room for the body's most nodes (see
+    /// [`worth_testing`]).
+    answered: Vec<Vec<u32>>,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -217,6 +221,12 @@ impl BodyContactScratch {
             bvh
         }));
         let count = bvhs.len();
+        // Room for each body's most nodes (at most 3 per triangle, as the hierarchy's own).
+        let answered = bodies
+            .iter()
+            .map(|b| Vec::with_capacity(b.mesh_capacity().0.max(b.node_count())))
+            .chain((0..spare).map(|_| Vec::with_capacity(3 * spare_triangles + 3)))
+            .collect();
         Self {
             bvhs,
             pairs: Vec::with_capacity(PAIR_CAPACITY),
@@ -238,6 +248,7 @@ impl BodyContactScratch {
             tight_bounds: Vec::with_capacity(count),
             fitted: Vec::with_capacity(count),
             max_motion: Vec::with_capacity(count),
+            answered,
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
         }
@@ -351,18 +362,23 @@ fn test_primitive(
     let e = nodes.map(|r| end_of(bodies, r));
     // Two primitives that start farther apart than their nodes move over the tick cannot meet:
     // every point of a face (edge) moves by at most its nodes' largest displacement. This skips
-    // the search for resting contacts the response keeps apart.
-    let motion = |k: usize| (e[k] - s[k]).norm();
-    let (start_distance, reach) = if vertex_face {
-        (
-            (closest_point_on_triangle(&s[0], &s[1], &s[2], &s[3]) - s[0]).norm(),
-            motion(0) + motion(1).max(motion(2)).max(motion(3)),
-        )
+    // the search for resting contacts the response keeps apart. The same bound first on the
+    // plane's (lines') distance, with no closest points: a body whose nodes move fast in one place
+    // (a light organ under a heavy one) leaves the bodies' bound above loose everywhere else.
+    let motion = [0, 1, 2, 3].map(|k| (e[k] - s[k]).norm());
+    let reach = if vertex_face {
+        motion[0] + motion[1].max(motion[2]).max(motion[3])
     } else {
-        (
-            segment_segment_distance(&s[0], &s[1], &s[2], &s[3]),
-            motion(0).max(motion(1)) + motion(2).max(motion(3)),
-        )
+        motion[0].max(motion[1]) + motion[2].max(motion[3])
+    };
+    let nearest = reach + FILTER_MARGIN;
+    if along * along > nearest * nearest * across.norm_squared() * (1.0 + BOUND_ROUNDING) {
+        return false;
+    }
+    let start_distance = if vertex_face {
+        (closest_point_on_triangle(&s[0], &s[1], &s[2], &s[3]) - s[0]).norm()
+    } else {
+        segment_segment_distance(&s[0], &s[1], &s[2], &s[3])
     };
     if start_distance > reach + FILTER_MARGIN {
         return false;
@@ -392,6 +408,40 @@ fn test_primitive(
     true
 }
 
+/// Whether the collision net must test the pair of primitives of `nodes` in `round`: always in the
+/// first round (and when `skipping` is off: no room to follow the answers); afterwards only when a
+/// collision of one of its nodes was answered in the round before or in this one so far. Otherwise
+/// its nodes' trajectories are those it was tested with in the round before, by induction back to
+/// the first round (a pair a later round lists was listed by the earlier ones: stopping short only
+/// shrinks the boxes), and it did not collide on them: the test would answer no again, so skipping
+/// it changes nothing, to the bit.
+fn worth_testing(
+    answered: &[Vec<u32>],
+    nodes: &[NodeRef; 4],
+    round: usize,
+    skipping: bool,
+) -> bool {
+    round == 0
+        || !skipping
+        || nodes
+            .iter()
+            .any(|r| answered[r.body][r.node] as usize >= round)
+}
+
+/// Records that `round` answered a collision of `nodes` (when `hit`; whether or not it could move
+/// them: a tool holds some); returns 1 when it did.
+fn mark_answered(answered: &mut [Vec<u32>], nodes: &[NodeRef; 4], round: usize, hit: bool) -> u32 {
+    if !hit {
+        return 0;
+    }
+    for r in nodes {
+        if let Some(mark) = answered[r.body].get_mut(r.node) {
+            *mark = round as u32 + 1;
+        }
+    }
+    1
+}
+
 /// Finds and answers collisions between the trajectories of different bodies. Bodies with the same
 /// `group` (the pieces of one transected body, whose caps start where they were cut apart) are not
 /// tested against each other.
@@ -406,6 +456,7 @@ pub fn resolve_body_collisions(
     if prepared == Prepared::NoneNear {
         return counters;
     }
+    let mut skipping = false;
     for round in 0..=ROUNDS {
         let freeze = round == ROUNDS;
         // The bounds of the first round hold for the later ones: stopping short only shortens
@@ -424,6 +475,20 @@ pub fn resolve_body_collisions(
             };
             if !any {
                 break;
+            }
+            // Room to follow which nodes' collisions the rounds answer (else every round tests
+            // every pair).
+            skipping = true;
+            for (k, answered) in scratch.answered.iter_mut().enumerate() {
+                if scratch.near[k] {
+                    answered.clear();
+                    let n = bodies[k].node_count();
+                    if n <= answered.capacity() {
+                        answered.resize(n, 0);
+                    } else {
+                        skipping = false;
+                    }
+                }
             }
         }
         for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
@@ -480,14 +545,18 @@ pub fn resolve_body_collisions(
                                 continue;
                             }
                             let nodes = [v, face[0], face[1], face[2]];
-                            answered += test_primitive(
+                            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+                                continue;
+                            }
+                            let hit = test_primitive(
                                 bodies,
                                 nodes,
                                 (true, &scratch.max_motion),
                                 &scratch.settings,
                                 overflow_freeze,
                                 dt,
-                            ) as u32;
+                            );
+                            answered += mark_answered(&mut scratch.answered, &nodes, round, hit);
                         }
                     }
                     for ea in 0..3 {
@@ -499,14 +568,18 @@ pub fn resolve_body_collisions(
                                 continue;
                             }
                             let nodes = [fa[ea], fa[(ea + 1) % 3], fb[eb], fb[(eb + 1) % 3]];
-                            answered += test_primitive(
+                            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+                                continue;
+                            }
+                            let hit = test_primitive(
                                 bodies,
                                 nodes,
                                 (false, &scratch.max_motion),
                                 &scratch.settings,
                                 overflow_freeze,
                                 dt,
-                            ) as u32;
+                            );
+                            answered += mark_answered(&mut scratch.answered, &nodes, round, hit);
                         }
                     }
                 }
