@@ -37,16 +37,9 @@ pub fn crossing_surfaces(bodies: &[Body], group: &[usize]) -> Vec<Crossing> {
                 continue;
             }
             let (a, b) = (&bodies[i].surface, &bodies[j].surface);
-            let bvh = hierarchy.get_or_insert_with(|| {
-                let mut bvh = TriangleBvh::build(&b.triangles, &b.position_in_world);
-                bvh.refit(
-                    &b.triangles,
-                    &b.position_in_world,
-                    &b.position_in_world,
-                    0.0,
-                );
-                bvh
-            });
+            // Built at the positions: its boxes are the triangles' (no sweep, no margin).
+            let bvh = hierarchy
+                .get_or_insert_with(|| TriangleBvh::build(&b.triangles, &b.position_in_world));
             let mut pairs = 0;
             let mut first = None;
             for t in &a.triangles {
