@@ -838,6 +838,15 @@ impl World {
         self.systems.body_contact = self.bodies.len() >= 2 && self.body_contact.is_some();
     }
 
+    /// Keeps the body–body response's candidate pairs from tick to tick while the bodies stay
+    /// within their slack (the default), or lists them again every tick; the result bits are the
+    /// same either way (for tests and benchmarks).
+    pub fn set_candidate_cache(&mut self, keep: bool) {
+        if let Some(scratch) = self.body_contact.as_mut() {
+            scratch.set_candidate_cache(keep);
+        }
+    }
+
     /// Chooses the force stage's SIMD path (where the machine has one) or its scalar path for every
     /// body; the result bits are the same either way.
     pub fn set_simd(&mut self, simd: bool) {
@@ -1154,6 +1163,7 @@ impl World {
             counters.bodies.overflows += response.overflows;
             counters.bodies.contacts = response.contacts;
             counters.bodies.contacts_dropped = response.contacts_dropped;
+            counters.bodies.listed_pairs = response.listed_pairs;
         }
         clock.enter(Stage::Commit);
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {

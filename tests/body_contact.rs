@@ -518,3 +518,83 @@ fn stack_of_four(radii: [f64; 3], bottom: f64, spacing: f64) -> String {
     }
     text
 }
+
+/// The response's candidate pairs kept from tick to tick (listed again only where a body left its
+/// slack) give the same result bits as pairs listed every tick: a block sliding down a tilted body
+/// (it leaves its slack every tick once fast) and four flat organs settling into a stack (they come
+/// to rest, and the listing stops). Every node's position and velocity is compared after every tick.
+#[test]
+fn candidate_pairs_kept_between_ticks_give_the_bits_of_pairs_listed_every_tick() {
+    let stack = || {
+        World::from_scene(&common::scene(&stack_of_four(
+            [0.05, 0.05, 0.01],
+            0.0105,
+            0.0205,
+        )))
+    };
+    let block = || block_on_tilted_slab(30f64.to_radians(), 0.3);
+    // (name, world, ticks, whether it comes to rest)
+    let cases: [(&str, &dyn Fn() -> World, usize, bool); 2] = [
+        ("sliding block", &block, 500, false),
+        ("stack of four", &stack, 3000, true),
+    ];
+    for (name, make, ticks, rests) in cases {
+        let mut kept = make();
+        let mut listed = make();
+        listed.set_candidate_cache(false);
+        let (mut listings_kept, mut listings_every_tick, mut contacts) = (0u64, 0u64, 0u64);
+        let (mut late_kept, mut late_every_tick) = (0u64, 0u64);
+        for tick in 0..ticks {
+            kept.step();
+            listed.step();
+            listings_kept += u64::from(kept.counters.bodies.listed_pairs);
+            listings_every_tick += u64::from(listed.counters.bodies.listed_pairs);
+            contacts += u64::from(kept.counters.bodies.contacts);
+            if tick >= ticks / 2 {
+                late_kept += u64::from(kept.counters.bodies.listed_pairs);
+                late_every_tick += u64::from(listed.counters.bodies.listed_pairs);
+            }
+            assert_eq!(
+                kept.counters.bodies,
+                {
+                    let mut c = listed.counters.bodies;
+                    c.listed_pairs = kept.counters.bodies.listed_pairs;
+                    c
+                },
+                "{name}, tick {tick}"
+            );
+            for (a, b) in kept.bodies.iter().zip(&listed.bodies) {
+                let (sa, sb) = (&a.surface, &b.surface);
+                for k in 0..sa.position_in_world.len() {
+                    for d in 0..3 {
+                        assert_eq!(
+                            sa.position_in_world[k][d].to_bits(),
+                            sb.position_in_world[k][d].to_bits(),
+                            "{name}, tick {tick}, node {k}"
+                        );
+                        assert_eq!(
+                            sa.velocity_in_world[k][d].to_bits(),
+                            sb.velocity_in_world[k][d].to_bits(),
+                            "{name}, tick {tick}, node {k}"
+                        );
+                    }
+                }
+            }
+        }
+        println!(
+            "{name}: {contacts} contacts over {ticks} ticks; pairs listed {listings_kept} times kept, \
+             {listings_every_tick} times listed every tick ({late_kept} and {late_every_tick} over the \
+             second half)"
+        );
+        assert!(contacts > ticks as u64, "{name}: the bodies barely touch");
+        // Kept pairs are listed again when the bodies move (the block gains more than the slack
+        // a tick within a tenth of a second), and not once they rest.
+        assert!(listings_kept > 1, "{name}");
+        if rests {
+            assert!(
+                late_kept * 10 < late_every_tick,
+                "{name}: {late_kept} listings kept against {late_every_tick} over the second half"
+            );
+        }
+    }
+}

@@ -157,6 +157,16 @@ impl TriangleBvh {
         }
     }
 
+    /// Triangle `t`'s box from the last refit.
+    pub fn triangle_box(&self, t: usize) -> &Aabb {
+        &self.triangle_boxes[t]
+    }
+
+    /// The box of every triangle, from the last refit (`None` for an empty hierarchy).
+    pub fn bounds(&self) -> Option<Aabb> {
+        self.nodes.first().map(|node| node.aabb)
+    }
+
     /// The features triangle `t` owns: bits [`owns_vertex`]`(k)` and [`owns_side`]`(k)`.
     pub fn owned(&self, t: usize) -> u8 {
         self.owned[t]

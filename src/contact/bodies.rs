@@ -6,7 +6,10 @@
 //!
 //! 1. The **response** ([`respond_to_body_contacts`]): vertex–face and edge–edge contacts within a
 //!    skin, answered with inelastic normal impulses and Coulomb friction, equal and opposite on the
-//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law).
+//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law). Its
+//!    candidate pairs (a vertex or edge of one body, a triangle of the other) are kept from tick
+//!    to tick while every node stays within a slack of where it was when they were listed, and
+//!    checked each tick against that tick's boxes: a resting stack queries no hierarchy.
 //! 2. The **net** ([`resolve_body_collisions`]): the broad phase lists the triangle pairs that may
 //!    meet, and the narrow phase tests each pair's vertices against the other's face (both ways) and
 //!    each edge against the other's edges, with the earliest time of impact. What collides stops
@@ -79,6 +82,9 @@ pub struct BodyContactCounters {
     pub contacts: u32,
     /// Contacts beyond the contact list's capacity (left to the collision net; counted).
     pub contacts_dropped: u32,
+    /// Pairs of bodies whose candidates the response listed from the hierarchies this tick (the
+    /// others' were kept from an earlier tick).
+    pub listed_pairs: u32,
 }
 
 /// A vertex of one body touching a face of another, or an edge touching an edge (or about to,
@@ -185,6 +191,8 @@ pub struct BodyContactScratch {
     tight_bounds: Vec<Aabb>,
     /// The bodies whose hierarchies the response refitted (with no margin) this tick.
     fitted: Vec<bool>,
+    /// The response's candidate pairs, listed again only where bodies moved.
+    cache: CandidateCache,
     /// Each body's largest node displacement over the tick (m), at least.
     max_motion: Vec<f64>,
     /// Per body and node, 1 + the last round of the collision net that answered a collision of
@@ -247,6 +255,7 @@ impl BodyContactScratch {
             prepared: Prepared::Nothing,
             tight_bounds: Vec::with_capacity(count),
             fitted: Vec::with_capacity(count),
+            cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
             max_motion: Vec::with_capacity(count),
             answered,
             forces: vec![Vec3::zeros(); count],
@@ -256,6 +265,12 @@ impl BodyContactScratch {
 }
 
 impl BodyContactScratch {
+    /// Keeps the response's candidate pairs from tick to tick while the bodies stay within their
+    /// slack (`true`, the default), or lists them again every tick.
+    pub fn set_candidate_cache(&mut self, keep: bool) {
+        self.cache.keep = keep;
+    }
+
     /// Each body's bounds swept over the tick with no margin, whether they meet another body's,
     /// and its largest node displacement ([`bodies_near`]); returns whether any pair meets.
     fn find_bounds(&mut self, bodies: &[Body], group: &[usize]) -> bool {
@@ -809,12 +824,27 @@ pub fn respond_to_body_contacts(
     if !mark_near(group, &scratch.bounds, &mut scratch.near) {
         return counters;
     }
-    // The hierarchies are refitted with no margin (the collision net's boxes, kept for it) and
-    // the queries grown by the skin: a vertex (edge) within the skin of a face (edge) at the end
-    // of the tick has its swept box within the skin of that face's (edge's) box, and a vertex
-    // that crossed the inside of a face over the tick has a swept box meeting the face's. (A
-    // vertex ending deeper than the skin behind a face it did not cross inside is left to the
-    // collision net, which stops it: no pass-through either way.)
+    // Each vertex of a body near another once against that body's faces, each edge once against
+    // its edges: the candidates are the other body's triangles whose swept boxes meet the vertex's
+    // (edge's) swept box grown by the skin — a vertex (edge) within the skin of a face (edge) at
+    // the end of the tick has its swept box within the skin of that face's (edge's) box, and a
+    // vertex that crossed the inside of a face over the tick has a swept box meeting the face's.
+    // (A vertex ending deeper than the skin behind a face it did not cross inside is left to the
+    // collision net, which stops it: no pass-through either way.) The pairs that may meet are
+    // listed from the hierarchies only when a body moved out of the slack of its last listing
+    // ([`CandidateCache`]), and each listed pair is checked with this tick's boxes: the same
+    // candidates as a query of the hierarchies every tick, and the same contacts.
+    scratch.cache.list(
+        bodies,
+        group,
+        &scratch.bounds,
+        &scratch.near,
+        &mut scratch.bvhs,
+        (&mut scratch.near_triangles, &mut scratch.found),
+        &mut counters,
+    );
+    // The hierarchies of the near bodies, refitted to this tick's trajectories with no margin:
+    // the triangles' boxes the candidates are checked with (and the net's, kept for it).
     scratch.fitted.clear();
     for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
         if scratch.near[k] {
@@ -830,13 +860,7 @@ pub fn respond_to_body_contacts(
             contacts.push(c);
         }
     };
-    // Each vertex of a body near another once against that body's faces, each edge once against
-    // its edges (a query of the other's hierarchy with the vertex's or edge's swept box). The
-    // vertices and edges looked at are those of the body's own triangles whose boxes meet the
-    // other's bounds, each through the triangle that owns it: a vertex's (edge's) swept box grown
-    // by the skin lies within the box of each of its triangles, so no vertex (edge) whose box meets
-    // the other's bounds is missed, and the cost follows the region where the bodies meet, not
-    // their sizes.
+    let slots = scratch.cache.slots;
     for i in 0..bodies.len() {
         for j in 0..bodies.len() {
             if i == j
@@ -845,90 +869,83 @@ pub fn respond_to_body_contacts(
             {
                 continue;
             }
-            let other = scratch.tight_bounds[j];
-            // Body i's triangles within the skin of body j's bounds (already grown by it): those
-            // of every vertex and edge whose grown swept box meets body j's bounds.
-            let reach = scratch.bounds[j];
-            scratch.near_triangles.clear();
-            if !scratch.bvhs[i].query(&reach, &mut scratch.near_triangles) {
-                counters.overflows += 1;
+            let pair = i * slots + j;
+            if !scratch.cache.listed[pair] {
+                continue;
             }
-            let swept = |nodes: &[usize]| {
-                let mut aabb = swept_box(&bodies[i], nodes);
-                aabb.inflate(CONTACT_SKIN);
-                aabb
-            };
-            for n in 0..scratch.near_triangles.len() {
-                let t = scratch.near_triangles[n] as usize;
-                let owned = scratch.bvhs[i].owned(t);
-                let corners = bodies[i].surface.triangles[t];
-                for (c, &corner) in corners.iter().enumerate() {
-                    if owned & owns_vertex(c) == 0 {
+            let [vertices, edges] = scratch.cache.ranges[pair];
+            let entries = &scratch.cache.entries[scratch.cache.current];
+            let sj = &bodies[j].surface;
+            let bvh = &scratch.bvhs[j];
+            let mut k = vertices.0 as usize;
+            while k < vertices.1 as usize {
+                let v = entries[k].feature[0];
+                let mut swept = swept_box(&bodies[i], &[v as usize]);
+                swept.inflate(CONTACT_SKIN);
+                let vertex = NodeRef {
+                    body: i,
+                    node: v as usize,
+                };
+                let mut best: Option<Contact> = None;
+                while k < vertices.1 as usize && entries[k].feature[0] == v {
+                    let t = entries[k].triangle;
+                    k += 1;
+                    if !bvh.triangle_box(t as usize).overlaps(&swept) {
                         continue;
                     }
-                    let v = corner as usize;
-                    if !query_near(&swept(&[v]), &other, scratch, j, &mut counters) {
+                    counters.candidate_pairs += 1;
+                    let face = sj.triangles[t as usize].map(|w| NodeRef {
+                        body: j,
+                        node: w as usize,
+                    });
+                    if let Some(c) = vertex_face_contact(bodies, vertex, face) {
+                        keep_nearer(&mut best, c);
+                    }
+                }
+                if let Some(c) = best {
+                    push(&mut scratch.contacts, &mut counters, c);
+                }
+            }
+            let mut k = edges.0 as usize;
+            while k < edges.1 as usize {
+                let feature = entries[k].feature;
+                let (ea, eb) = (feature[0] as usize, feature[1] as usize);
+                let mut swept = swept_box(&bodies[i], &[ea, eb]);
+                swept.inflate(CONTACT_SKIN);
+                let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+                let mut best: Option<Contact> = None;
+                while k < edges.1 as usize && entries[k].feature == feature {
+                    let found = entries[k].triangle as usize;
+                    k += 1;
+                    if !bvh.triangle_box(found).overlaps(&swept) {
                         continue;
                     }
-                    let vertex = NodeRef { body: i, node: v };
-                    let mut best: Option<Contact> = None;
-                    for k in 0..scratch.found.len() {
-                        let face =
-                            bodies[j].surface.triangles[scratch.found[k] as usize].map(|w| {
-                                NodeRef {
-                                    body: j,
-                                    node: w as usize,
-                                }
-                            });
-                        if let Some(c) = vertex_face_contact(bodies, vertex, face) {
+                    counters.candidate_pairs += 1;
+                    let t = sj.triangles[found];
+                    let owned = bvh.owned(found);
+                    for side in 0..3 {
+                        // Each side once, through the triangle that owns it (whose box meets the
+                        // edge's whenever the side's does).
+                        if owned & owns_side(side) == 0 {
+                            continue;
+                        }
+                        let b = sorted([
+                            NodeRef {
+                                body: j,
+                                node: t[side] as usize,
+                            },
+                            NodeRef {
+                                body: j,
+                                node: t[(side + 1) % 3] as usize,
+                            },
+                        ]);
+                        if let Some(c) = edge_edge_contact(bodies, a, b) {
                             keep_nearer(&mut best, c);
                         }
                     }
-                    if let Some(c) = best {
-                        push(&mut scratch.contacts, &mut counters, c);
-                    }
                 }
-                if j < i {
-                    continue;
-                }
-                for side in 0..3 {
-                    if owned & owns_side(side) == 0 {
-                        continue;
-                    }
-                    let (ea, eb) = (corners[side] as usize, corners[(side + 1) % 3] as usize);
-                    if !query_near(&swept(&[ea, eb]), &other, scratch, j, &mut counters) {
-                        continue;
-                    }
-                    let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
-                    let mut best: Option<Contact> = None;
-                    for k in 0..scratch.found.len() {
-                        let found = scratch.found[k] as usize;
-                        let t = bodies[j].surface.triangles[found];
-                        let owned = scratch.bvhs[j].owned(found);
-                        for side in 0..3 {
-                            // Each side once, through the triangle that owns it (whose box the
-                            // query meets whenever it meets the side's).
-                            if owned & owns_side(side) == 0 {
-                                continue;
-                            }
-                            let b = sorted([
-                                NodeRef {
-                                    body: j,
-                                    node: t[side] as usize,
-                                },
-                                NodeRef {
-                                    body: j,
-                                    node: t[(side + 1) % 3] as usize,
-                                },
-                            ]);
-                            if let Some(c) = edge_edge_contact(bodies, a, b) {
-                                keep_nearer(&mut best, c);
-                            }
-                        }
-                    }
-                    if let Some(c) = best {
-                        push(&mut scratch.contacts, &mut counters, c);
-                    }
+                if let Some(c) = best {
+                    push(&mut scratch.contacts, &mut counters, c);
                 }
             }
         }
@@ -1017,6 +1034,326 @@ pub fn respond_to_body_contacts(
     counters
 }
 
+/// Half-width (m), per axis, of the region a node's trajectory may wander over from the box it had
+/// when the response last listed its body's candidate pairs, before they are listed again.
+const CANDIDATE_SLACK: f64 = 2.5e-4;
+/// Capacity of the response's candidate list (a feature of one body against a triangle of another).
+const CANDIDATE_CAPACITY: usize = 1 << 16;
+
+/// A vertex (`[v, v]`) or an edge (`[a, b]`, a < b) of one body and a triangle of another whose
+/// boxes may meet within the skin.
+#[derive(Clone, Copy, Debug, Default)]
+struct Candidate {
+    feature: [u32; 2],
+    triangle: u32,
+}
+
+/// The response's candidate pairs, kept from tick to tick (a Verlet list). Each body keeps the box
+/// of each node's trajectory when its pairs were last listed (its *reference*); the pairs of two
+/// bodies are listed from their references' hierarchies with the skin and three times the slack,
+/// and hold while every node's trajectory stays within the slack of its reference box: a vertex's
+/// (edge's) swept box grown by the skin then meets a triangle's box only if their references,
+/// grown by the skin and twice the slack, meet (the third slack covers rounding, far above it).
+/// A body whose nodes left their slack (or whose topology changed) takes a new reference and its
+/// pairs are listed again; a resting stack lists once. Each tick the listed pairs are checked with
+/// that tick's boxes, so the candidates are those of a query every tick.
+#[derive(Clone, Debug)]
+struct CandidateCache {
+    /// Per body, the lower and upper corners of each node's reference box (room for its most
+    /// nodes), and the topology version and node count of the reference (`None`: none taken, or
+    /// no room, when the body's trajectories serve as its boxes and are listed again every tick).
+    lower: Vec<Vec<Vec3>>,
+    upper: Vec<Vec<Vec3>>,
+    reference: Vec<Option<(u64, usize)>>,
+    /// Per body, whether its pairs are to be listed again this tick.
+    renewed: Vec<bool>,
+    /// Per ordered pair of bodies (i × `slots` + j): whether its candidates are listed, and their
+    /// ranges (vertices of i, then edges of i when j > i) in the list in use.
+    listed: Vec<bool>,
+    ranges: Vec<[(u32, u32); 2]>,
+    /// The list in use (grouped by pair, then by feature) and the one a new listing is written to.
+    entries: [Vec<Candidate>; 2],
+    current: usize,
+    /// The bodies the tables have room for.
+    slots: usize,
+    /// False: every near body takes a new reference every tick (its pairs listed every tick).
+    keep: bool,
+}
+
+impl CandidateCache {
+    fn new(bodies: &[Body], slots: usize, spare_nodes: usize) -> Self {
+        let room = |k: usize| {
+            bodies
+                .get(k)
+                .map_or(spare_nodes, |b| b.mesh_capacity().0.max(b.node_count()))
+        };
+        Self {
+            lower: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            upper: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            reference: vec![None; slots],
+            renewed: vec![false; slots],
+            listed: vec![false; slots * slots],
+            ranges: vec![[(0, 0); 2]; slots * slots],
+            entries: [
+                Vec::with_capacity(CANDIDATE_CAPACITY),
+                Vec::with_capacity(CANDIDATE_CAPACITY),
+            ],
+            current: 0,
+            slots,
+            keep: true,
+        }
+    }
+
+    /// Whether every node of body `k` has its trajectory this tick within the slack of its
+    /// reference box (and the topology is the reference's).
+    fn holds(&self, k: usize, body: &Body) -> bool {
+        let s = &body.surface;
+        let n = s.position_in_world.len();
+        if self.reference[k] != Some((body.topology_version, n)) {
+            return false;
+        }
+        let slack = Vec3::repeat(CANDIDATE_SLACK);
+        let mut inside = true;
+        for (((p, q), lo), hi) in s
+            .position_in_world
+            .iter()
+            .zip(&s.next_position_in_world)
+            .zip(&self.lower[k])
+            .zip(&self.upper[k])
+        {
+            let (lo, hi) = (lo - slack, hi + slack);
+            // Plain comparisons, no early exit (NaN: outside).
+            for d in 0..3 {
+                inside &= (p[d] >= lo[d]) & (p[d] <= hi[d]) & (q[d] >= lo[d]) & (q[d] <= hi[d]);
+            }
+        }
+        inside
+    }
+
+    /// Body `k`'s trajectories this tick as its reference (none when there is no room for them).
+    fn renew(&mut self, k: usize, body: &Body) {
+        let s = &body.surface;
+        let n = s.position_in_world.len();
+        let (lower, upper) = (&mut self.lower[k], &mut self.upper[k]);
+        lower.clear();
+        upper.clear();
+        if n > lower.capacity() || n > upper.capacity() {
+            self.reference[k] = None;
+            return;
+        }
+        for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
+            lower.push(p.inf(q));
+            upper.push(p.sup(q));
+        }
+        self.reference[k] = Some((body.topology_version, n));
+    }
+
+    /// Body `k`'s boxes: its reference, or this tick's trajectories when it has none.
+    fn boxes<'a>(&'a self, k: usize, body: &'a Body) -> (&'a [Vec3], &'a [Vec3]) {
+        match self.reference[k] {
+            Some(_) => (&self.lower[k], &self.upper[k]),
+            None => (
+                &body.surface.position_in_world,
+                &body.surface.next_position_in_world,
+            ),
+        }
+    }
+
+    /// Brings the list up to date for the pairs of bodies near each other this tick (`bounds`
+    /// grown by the skin meet): bodies whose nodes left their slack take a new reference, and the
+    /// pairs of such bodies, and the near pairs not listed yet, are listed from the hierarchies
+    /// refitted to the references. (The hierarchies are then the references', not the tick's.)
+    #[allow(clippy::too_many_arguments)]
+    fn list(
+        &mut self,
+        bodies: &[Body],
+        group: &[usize],
+        bounds: &[Aabb],
+        near: &[bool],
+        bvhs: &mut [TriangleBvh],
+        (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
+        counters: &mut BodyContactCounters,
+    ) {
+        let n = bodies.len().min(self.slots);
+        for k in 0..n {
+            self.renewed[k] = near[k]
+                && (!self.keep || self.reference[k].is_none() || !self.holds(k, &bodies[k]));
+            if self.renewed[k] {
+                self.renew(k, &bodies[k]);
+            }
+        }
+        let pairs_of = |i: usize, j: usize| {
+            i != j
+                && group.get(i).is_none_or(|g| group.get(j) != Some(g))
+                && bounds[i].overlaps(&bounds[j])
+        };
+        let mut any = false;
+        for i in 0..n {
+            for j in 0..n {
+                let pair = i * self.slots + j;
+                if self.renewed[i] || self.renewed[j] {
+                    self.listed[pair] = false;
+                }
+                if !self.listed[pair] && pairs_of(i, j) {
+                    any = true;
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        // The hierarchies of the bodies of the pairs to list, refitted to their references.
+        let slots = self.slots;
+        let to_list =
+            |i: usize, j: usize, listed: &[bool]| !listed[i * slots + j] && pairs_of(i, j);
+        for (k, (body, bvh)) in bodies.iter().zip(bvhs.iter_mut()).enumerate().take(n) {
+            let wanted = (0..n).any(|o| to_list(k, o, &self.listed) || to_list(o, k, &self.listed));
+            if !wanted {
+                continue;
+            }
+            let s = &body.surface;
+            if !bvh.is_built_for(body.topology_version, s.triangles.len()) {
+                bvh.rebuild(&s.triangles, &s.position_in_world);
+                bvh.set_built_version(body.topology_version);
+            }
+            let (lower, upper) = self.boxes(k, body);
+            bvh.refit(&s.triangles, lower, upper, 0.0);
+        }
+        // A new list: the pairs that hold, copied; the others listed.
+        let (used, next) = if self.current == 0 {
+            let (a, b) = self.entries.split_at_mut(1);
+            (&a[0], &mut b[0])
+        } else {
+            let (a, b) = self.entries.split_at_mut(1);
+            (&b[0], &mut a[0])
+        };
+        next.clear();
+        let reach = CONTACT_SKIN + 3.0 * CANDIDATE_SLACK;
+        for (i, body) in bodies.iter().enumerate().take(n) {
+            for j in 0..n {
+                let pair = i * self.slots + j;
+                if self.listed[pair] {
+                    let mut ranges = self.ranges[pair];
+                    for range in &mut ranges {
+                        let start = next.len() as u32;
+                        next.extend_from_slice(&used[range.0 as usize..range.1 as usize]);
+                        *range = (start, next.len() as u32);
+                    }
+                    self.ranges[pair] = ranges;
+                    continue;
+                }
+                if !pairs_of(i, j) {
+                    continue;
+                }
+                let (lower_i, upper_i) = match self.reference[i] {
+                    Some(_) => (&self.lower[i][..], &self.upper[i][..]),
+                    None => (
+                        &body.surface.position_in_world[..],
+                        &body.surface.next_position_in_world[..],
+                    ),
+                };
+                let complete = list_pair(
+                    (i, j, body),
+                    (lower_i, upper_i),
+                    bvhs,
+                    reach,
+                    (near_triangles, found),
+                    next,
+                    &mut self.ranges[pair],
+                );
+                counters.listed_pairs += 1;
+                if complete {
+                    // Bodies with no reference are listed again next tick.
+                    self.listed[pair] = self.reference[i].is_some() && self.reference[j].is_some();
+                } else {
+                    counters.overflows += 1;
+                    self.listed[pair] = false;
+                }
+            }
+        }
+        self.current = 1 - self.current;
+    }
+}
+
+/// Lists body i's vertices against body j's triangles (and, when j > i, its edges), from the
+/// boxes the two hierarchies are fitted to and body i's boxes `lower`–`upper`, grown by `reach`,
+/// into `out`; the ranges written into `ranges`. False when a list was full (incomplete).
+fn list_pair(
+    (i, j, body): (usize, usize, &Body),
+    (lower, upper): (&[Vec3], &[Vec3]),
+    bvhs: &mut [TriangleBvh],
+    reach: f64,
+    (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
+    out: &mut Vec<Candidate>,
+    ranges: &mut [(u32, u32); 2],
+) -> bool {
+    let mut complete = true;
+    let Some(other) = bvhs[j].bounds() else {
+        *ranges = [(out.len() as u32, out.len() as u32); 2];
+        return true;
+    };
+    let mut grown = other;
+    grown.inflate(reach);
+    near_triangles.clear();
+    complete &= bvhs[i].query(&grown, near_triangles);
+    let triangles = &body.surface.triangles;
+    let box_of = |nodes: &[usize]| {
+        let mut aabb = Aabb::empty();
+        for &v in nodes {
+            aabb.include(&lower[v]);
+            aabb.include(&upper[v]);
+        }
+        aabb.inflate(reach);
+        aabb
+    };
+    let push = |out: &mut Vec<Candidate>, c: Candidate| {
+        if out.len() == out.capacity() {
+            false
+        } else {
+            out.push(c);
+            true
+        }
+    };
+    for part in 0..2 {
+        let start = out.len() as u32;
+        if part == 1 && j < i {
+            ranges[1] = (start, start);
+            continue;
+        }
+        for &t in near_triangles.iter() {
+            let owned = bvhs[i].owned(t as usize);
+            let corners = triangles[t as usize];
+            for c in 0..3 {
+                let (feature, nodes) = if part == 0 {
+                    if owned & owns_vertex(c) == 0 {
+                        continue;
+                    }
+                    let v = corners[c];
+                    ([v, v], [v as usize, v as usize])
+                } else {
+                    if owned & owns_side(c) == 0 {
+                        continue;
+                    }
+                    let (a, b) = (corners[c], corners[(c + 1) % 3]);
+                    let (a, b) = (a.min(b), a.max(b));
+                    ([a, b], [a as usize, b as usize])
+                };
+                let aabb = box_of(&nodes);
+                if !aabb.overlaps(&other) {
+                    continue;
+                }
+                found.clear();
+                complete &= bvhs[j].query(&aabb, found);
+                for &triangle in found.iter() {
+                    complete &= push(out, Candidate { feature, triangle });
+                }
+            }
+        }
+        ranges[part] = (start, out.len() as u32);
+    }
+    complete
+}
+
 /// Each body's bounds swept over the tick (start and end positions), whether they meet those of
 /// another body not of its group, and its nodes' largest displacement over the tick. Returns
 /// whether any pair meets. One pass over the nodes: bodies apart cost this and nothing more.
@@ -1077,36 +1414,6 @@ fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
         &s.next_position_in_world,
         margin,
     );
-}
-
-/// When `aabb` (a vertex's or edge's swept box) meets `other` (body `j`'s bounds): body `j`'s
-/// triangles whose boxes meet it, into the scratch's `found`, and true.
-fn query_near(
-    aabb: &Aabb,
-    other: &Aabb,
-    scratch: &mut BodyContactScratch,
-    j: usize,
-    counters: &mut BodyContactCounters,
-) -> bool {
-    if !aabb.overlaps(other) {
-        return false;
-    }
-    query_into(&mut scratch.bvhs[j], aabb, &mut scratch.found, counters);
-    true
-}
-
-/// The triangles of `bvh` whose boxes meet `aabb`, into `found` (a full list counted as an overflow).
-fn query_into(
-    bvh: &mut TriangleBvh,
-    aabb: &Aabb,
-    found: &mut Vec<u32>,
-    counters: &mut BodyContactCounters,
-) {
-    found.clear();
-    if !bvh.query(aabb, found) {
-        counters.overflows += 1;
-    }
-    counters.candidate_pairs += found.len() as u32;
 }
 
 /// The box of `nodes` of `body` over the tick (start and end positions).
