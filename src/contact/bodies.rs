@@ -629,20 +629,28 @@ fn barycentric(q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
 /// the skin of the face, or crossed its plane over the tick inside it.
 fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<Contact> {
     let end = face.map(|r| end_of(bodies, r));
-    let start = face.map(|r| start_of(bodies, r));
     let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
+    let pe = end_of(bodies, v);
+    // Farther than the skin in front of the face's plane: not near (the face is no nearer than its
+    // plane) and not crossed (it ends in front), whatever the closest point (the margin is far
+    // above the rounding of either measure). Compared in squares with the unnormalised normal,
+    // before its square root and division: a pair that this and the test on the unit normal would
+    // decide differently lies within rounding of the margin, beyond the skin, where the tests
+    // below turn it down as well.
+    let ahead = (pe - end[0]).dot(&normal);
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
+        return None;
+    }
     let length = normal.norm();
     if length <= f64::MIN_POSITIVE || !length.is_finite() {
         return None;
     }
     let face_normal = normal / length;
-    let pe = end_of(bodies, v);
-    // Farther than the skin in front of the face's plane: not near (the face is no nearer than its
-    // plane) and not crossed (it ends in front), whatever the closest point (the margin is far
-    // above the rounding of either measure).
-    if (pe - end[0]).dot(&face_normal) > CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN) {
+    if (pe - end[0]).dot(&face_normal) > reach {
         return None;
     }
+    let start = face.map(|r| start_of(bodies, r));
     let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
     let distance = (pe - q).norm();
     let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
@@ -1455,9 +1463,9 @@ fn solve(
             let mut tangent = c.tangent_impulse - slip / c.compliance;
             let limit = c.friction * c.normal_impulse;
             let size = tangent.norm();
-            if size > limit {
-                tangent *= limit / size;
-            }
+            // Scaled back into the cone where it leaves it, with no branch: the factor is 1 inside
+            // (limit / size ≥ 1, or not a number: 0 / 0) and tangent × 1 is tangent to the bit.
+            tangent *= (limit / size).min(1.0);
             let tangent_change = tangent - c.tangent_impulse;
             c.tangent_impulse = tangent;
             let impulse = c.normal * normal_change + tangent_change;
