@@ -45,14 +45,6 @@ pub struct TriangleBvh {
     /// Scratch of the refit: each node's box over the tick (a node is shared by about six
     /// triangles: its box is taken once).
     node_boxes: Vec<Aabb>,
-    /// Whether `node_boxes` holds every node's box of the last refit, made with no margin (what
-    /// [`TriangleBvh::refit_moved`] updates).
-    fitted_tight: bool,
-    /// Nodes whose end of tick moved since the last refit ([`TriangleBvh::mark_moved`]), once each.
-    moved: Vec<u32>,
-    node_moved: Vec<bool>,
-    /// Scratch of [`TriangleBvh::refit_moved`]: the hierarchy's nodes whose box it changed.
-    dirty: Vec<bool>,
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
@@ -87,10 +79,6 @@ impl TriangleBvh {
             side_keys: Vec::with_capacity(3 * triangles),
             node_seen: Vec::with_capacity(3 * triangles + 3),
             node_boxes: Vec::with_capacity(3 * triangles + 3),
-            fitted_tight: false,
-            moved: Vec::with_capacity(3 * triangles + 3),
-            node_moved: Vec::with_capacity(3 * triangles + 3),
-            dirty: Vec::with_capacity(2 * triangles / LEAF_SIZE + 2),
         }
     }
 
@@ -157,11 +145,6 @@ impl TriangleBvh {
         }
     }
 
-    /// Triangle `t`'s box from the last refit.
-    pub fn triangle_box(&self, t: usize) -> &Aabb {
-        &self.triangle_boxes[t]
-    }
-
     /// The box of every triangle, from the last refit (`None` for an empty hierarchy).
     pub fn bounds(&self) -> Option<Aabb> {
         self.nodes.first().map(|node| node.aabb)
@@ -190,8 +173,6 @@ impl TriangleBvh {
         // include: the same boxes), unless the nodes outnumber the room reserved for them.
         let nodes = start.len().min(end.len());
         let per_node = nodes <= self.node_boxes.capacity();
-        self.fitted_tight = per_node && margin == 0.0;
-        self.clear_moved();
         if per_node {
             self.node_boxes.clear();
             self.node_boxes.extend(
@@ -234,77 +215,6 @@ impl TriangleBvh {
         let mut aabb = self.nodes[node.first_or_left as usize].aabb;
         aabb.merge(&self.nodes[node.right as usize].aabb);
         aabb
-    }
-
-    /// Records that node `v`'s end of tick moved since the last refit (once per node; a node beyond
-    /// the room reserved for the mesh's nodes makes the next [`TriangleBvh::refit_moved`] a whole
-    /// refit).
-    pub fn mark_moved(&mut self, v: usize) {
-        if v >= self.node_moved.capacity() {
-            self.fitted_tight = false;
-            return;
-        }
-        if v >= self.node_moved.len() {
-            self.node_moved.resize(v + 1, false);
-        }
-        if !self.node_moved[v] {
-            self.node_moved[v] = true;
-            self.moved.push(v as u32);
-        }
-    }
-
-    fn clear_moved(&mut self) {
-        for &v in &self.moved {
-            self.node_moved[v as usize] = false;
-        }
-        self.moved.clear();
-    }
-
-    /// The refit with no margin for the ends of tick now in `end`, when only the nodes given to
-    /// [`TriangleBvh::mark_moved`] moved since the last refit (with no margin, from the same
-    /// `start`): the boxes of the triangles that have such a node and of the hierarchy's nodes
-    /// above them are taken again, the others kept. The boxes are those a whole refit gives (a box
-    /// is the minima and maxima of the same points, in whatever order). Otherwise a whole refit.
-    pub fn refit_moved(&mut self, triangles: &[[u32; 3]], start: &[Vec3], end: &[Vec3]) {
-        let nodes = start.len().min(end.len());
-        if !self.fitted_tight || self.node_boxes.len() != nodes {
-            self.refit(triangles, start, end, 0.0);
-            return;
-        }
-        for &v in &self.moved {
-            let v = v as usize;
-            self.node_boxes[v] = Aabb::of_pair(&start[v], &end[v]);
-        }
-        self.dirty.clear();
-        self.dirty.resize(self.nodes.len(), false);
-        let moved = |v: u32| self.node_moved.get(v as usize).copied().unwrap_or(false);
-        for k in (0..self.nodes.len()).rev() {
-            let node = self.nodes[k];
-            if node.count > 0 {
-                let first = node.first_or_left as usize;
-                let mut changed = false;
-                for &t in &self.order[first..first + node.count as usize] {
-                    let corners = triangles[t as usize];
-                    if !corners.iter().any(|&v| moved(v)) {
-                        continue;
-                    }
-                    self.triangle_boxes[t as usize] = triangle_box(&self.node_boxes, &corners);
-                    changed = true;
-                }
-                if changed {
-                    let mut aabb = Aabb::empty();
-                    for &t in &self.order[first..first + node.count as usize] {
-                        aabb.merge(&self.triangle_boxes[t as usize]);
-                    }
-                    self.nodes[k].aabb = aabb;
-                    self.dirty[k] = true;
-                }
-            } else if self.dirty[node.first_or_left as usize] || self.dirty[node.right as usize] {
-                self.nodes[k].aabb = self.children_box(&node);
-                self.dirty[k] = true;
-            }
-        }
-        self.clear_moved();
     }
 
     /// Appends to `found` every triangle whose box (from the last refit) overlaps `aabb`, in a fixed
@@ -540,56 +450,5 @@ mod tests {
             .collect();
         assert!(!expected.is_empty());
         assert_eq!(found, expected);
-    }
-
-    #[test]
-    fn refitting_what_moved_gives_the_boxes_of_a_whole_refit() {
-        let mesh = icosphere(0.05, 3);
-        let start = mesh.positions_in_body.clone();
-        let n = start.len();
-        // A deterministic scatter of small motions, then a few nodes moved again (as the contact
-        // response moves the nodes of its contacts), among them ones at a leaf's edge.
-        let wobble = |i: usize, scale: f64| {
-            let f = |k: usize| ((i * 7919 + k * 104_729) % 1000) as f64 / 1000.0 - 0.5;
-            Vec3::new(f(0), f(1), f(2)) * scale
-        };
-        let mut end: Vec<Vec3> = (0..n).map(|i| start[i] + wobble(i, 1e-3)).collect();
-        let mut bvh = TriangleBvh::build(&mesh.triangles, &start);
-        for round in 0..4 {
-            bvh.refit(&mesh.triangles, &start, &end, 0.0);
-            let moved: Vec<usize> = (0..n).filter(|i| (i * 31 + round) % 17 == 0).collect();
-            for &i in &moved {
-                end[i] += wobble(i + 1000 * round, 0.02);
-                bvh.mark_moved(i);
-                // Marking twice is the same as once.
-                bvh.mark_moved(i);
-            }
-            bvh.refit_moved(&mesh.triangles, &start, &end);
-            let mut whole = bvh.clone();
-            whole.refit(&mesh.triangles, &start, &end, 0.0);
-            let bits = |b: &Aabb| {
-                b.min
-                    .iter()
-                    .chain(b.max.iter())
-                    .map(|x| x.to_bits())
-                    .collect::<Vec<_>>()
-            };
-            for (a, b) in bvh.triangle_boxes.iter().zip(&whole.triangle_boxes) {
-                assert_eq!(bits(a), bits(b), "round {round}: a triangle's box");
-            }
-            for (k, (a, b)) in bvh.nodes.iter().zip(&whole.nodes).enumerate() {
-                assert_eq!(bits(&a.aabb), bits(&b.aabb), "round {round}: node {k}");
-            }
-            assert!(bvh.moved.is_empty() && !bvh.node_moved.iter().any(|&m| m));
-        }
-        // After a refit with a margin there is nothing to update: a whole refit with no margin.
-        bvh.refit(&mesh.triangles, &start, &end, 1e-3);
-        end[3] += Vec3::new(0.0, 0.0, 0.01);
-        bvh.mark_moved(3);
-        bvh.refit_moved(&mesh.triangles, &start, &end);
-        let mut whole = bvh.clone();
-        whole.refit(&mesh.triangles, &start, &end, 0.0);
-        assert_eq!(bvh.nodes[0].aabb.max, whole.nodes[0].aabb.max);
-        assert_eq!(bvh.triangle_boxes, whole.triangle_boxes);
     }
 }

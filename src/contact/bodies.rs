@@ -1,17 +1,19 @@
 //! Contact between deformable bodies (paper §5: collisions are found on trajectories).
 //!
 //! After every other stage has decided where the nodes end the tick, the trajectories of different
-//! bodies meet in two stages. Both look first at each body's bounds swept over the tick, and refit
-//! and query the hierarchies ([`TriangleBvh`], swept boxes) only of bodies whose bounds meet.
+//! bodies meet in two stages. Both look first at each body's bounds swept over the tick; where
+//! bodies' bounds meet, their candidates come from lists kept from tick to tick (a Verlet list,
+//! [`CandidateCache`]): listed from the bodies' hierarchies ([`TriangleBvh`]) only when a node
+//! left a slack around where it was at the listing, and checked every tick (and net round) against
+//! that tick's triangle boxes — the candidates, in the order, of a traversal of hierarchies refitted
+//! every tick, at a cost that follows the contact region and not the bodies' sizes. A resting
+//! stack lists once and refits no hierarchy.
 //!
 //! 1. The **response** ([`respond_to_body_contacts`]): vertex–face and edge–edge contacts within a
 //!    skin, answered with inelastic normal impulses and Coulomb friction, equal and opposite on the
-//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law). Its
-//!    candidate pairs (a vertex or edge of one body, a triangle of the other) are kept from tick
-//!    to tick while every node stays within a slack of where it was when they were listed, and
-//!    checked each tick against that tick's boxes: a resting stack queries no hierarchy.
-//! 2. The **net** ([`resolve_body_collisions`]): the broad phase lists the triangle pairs that may
-//!    meet, and the narrow phase tests each pair's vertices against the other's face (both ways) and
+//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law).
+//! 2. The **net** ([`resolve_body_collisions`]): the triangle pairs whose boxes meet, and the
+//!    narrow phase tests each pair's vertices against the other's face (both ways) and
 //!    each edge against the other's edges, with the earliest time of impact. What collides stops
 //!    short of the impact, at 90 % of the (lower-bound) time of impact along its own trajectory, and
 //!    takes the velocity that brings it there. This repeats a few rounds, as stopping some nodes can
@@ -189,8 +191,8 @@ pub struct BodyContactScratch {
     /// Each body's swept bounds with no margin, from the response: grown by the ends of tick the
     /// response moved, they hold the net's bounds.
     tight_bounds: Vec<Aabb>,
-    /// The bodies whose hierarchies the response refitted (with no margin) this tick.
-    fitted: Vec<bool>,
+    /// The triangles' boxes over this tick (or net round).
+    now: TriangleBoxes,
     /// The response's candidate pairs, listed again only where bodies moved.
     cache: CandidateCache,
     /// Each body's largest node displacement over the tick (m), at least.
@@ -254,7 +256,7 @@ impl BodyContactScratch {
             near: Vec::with_capacity(count),
             prepared: Prepared::Nothing,
             tight_bounds: Vec::with_capacity(count),
-            fitted: Vec::with_capacity(count),
+            now: TriangleBoxes::new(bodies, count, spare_triangles),
             cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
             max_motion: Vec::with_capacity(count),
             answered,
@@ -289,10 +291,9 @@ enum Prepared {
     Nothing,
     /// No two bodies' bounds met within the skin: none meet without it, and nothing moved.
     NoneNear,
-    /// The hierarchies of `fitted` bodies are refitted with no margin and know the nodes the
-    /// response moved since; `tight_bounds` hold the bounds with no margin before it moved them,
-    /// grown by where it moved them to.
-    Fitted,
+    /// Bodies near: `tight_bounds` hold the bounds with no margin before the response moved the
+    /// nodes, grown by where it moved them to.
+    Listed,
 }
 
 /// A node of some body.
@@ -477,7 +478,7 @@ pub fn resolve_body_collisions(
         // The bounds of the first round hold for the later ones: stopping short only shortens
         // trajectories.
         if round == 0 {
-            let any = if prepared == Prepared::Fitted {
+            let any = if prepared == Prepared::Listed {
                 // The response's bounds with no margin, grown by the ends it moved: they hold
                 // every node's trajectory now, so a pair of bodies whose bounds do not meet has no
                 // triangle boxes that meet either.
@@ -506,22 +507,20 @@ pub fn resolve_body_collisions(
                 }
             }
         }
-        for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
-            if !scratch.near[k] {
-                continue;
-            }
-            if round == 0 && prepared == Prepared::Fitted && scratch.fitted[k] {
-                // Refitted by the response: only what it moved since is taken again.
-                let s = &b.surface;
-                bvh.refit_moved(
-                    &s.triangles,
-                    &s.position_in_world,
-                    &s.next_position_in_world,
-                );
-            } else {
-                refit_hierarchy(b, bvh, 0.0);
-            }
+        if round == 0 {
+            // The kept triangle pairs, checked again: the response moved nodes, which may have
+            // left their slack. Later rounds only shorten trajectories, within the same boxes.
+            scratch.cache.list(
+                bodies,
+                group,
+                &scratch.bounds,
+                &scratch.near,
+                &mut scratch.bvhs,
+                (&mut scratch.near_triangles, &mut scratch.found),
+                &mut counters,
+            );
         }
+        scratch.now.begin(bodies);
         let mut answered = 0;
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
@@ -530,11 +529,23 @@ pub fn resolve_body_collisions(
                 {
                     continue;
                 }
+                let pair = i * scratch.cache.slots + j;
+                let listed = scratch.cache.listed[pair];
+                if listed == NOT_LISTED {
+                    continue;
+                }
+                let complete = listed != LISTED_IN_PART;
+                // The kept pairs whose boxes meet this round: the pairs, in the order, of a
+                // traversal of the hierarchies refitted to this round's trajectories.
                 scratch.pairs.clear();
-                let (left, right) = scratch.bvhs.split_at_mut(j);
-                let complete = left[i].overlapping_pairs(&right[0], &mut scratch.pairs);
-                if !complete {
-                    counters.overflows += 1;
+                let (start, end) = scratch.cache.pair_ranges[pair];
+                let kept =
+                    &scratch.cache.pairs[scratch.cache.current][start as usize..end as usize];
+                for &(ta, tb) in kept {
+                    let box_a = scratch.now.of(i, ta as usize, &bodies[i]);
+                    if box_a.overlaps(&scratch.now.of(j, tb as usize, &bodies[j])) {
+                        scratch.pairs.push((ta, tb));
+                    }
                 }
                 counters.candidate_pairs += scratch.pairs.len() as u32;
                 for k in 0..scratch.pairs.len() {
@@ -851,16 +862,8 @@ pub fn respond_to_body_contacts(
         (&mut scratch.near_triangles, &mut scratch.found),
         &mut counters,
     );
-    // The hierarchies of the near bodies, refitted to this tick's trajectories with no margin:
-    // the triangles' boxes the candidates are checked with (and the net's, kept for it).
-    scratch.fitted.clear();
-    for (k, (b, bvh)) in bodies.iter().zip(scratch.bvhs.iter_mut()).enumerate() {
-        if scratch.near[k] {
-            refit_hierarchy(b, bvh, 0.0);
-        }
-        scratch.fitted.push(scratch.near[k]);
-    }
-    scratch.prepared = Prepared::Fitted;
+    scratch.now.begin(bodies);
+    scratch.prepared = Prepared::Listed;
     let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
         if contacts.len() == contacts.capacity() {
             counters.contacts_dropped += 1;
@@ -878,13 +881,14 @@ pub fn respond_to_body_contacts(
                 continue;
             }
             let pair = i * slots + j;
-            if !scratch.cache.listed[pair] {
+            if scratch.cache.listed[pair] == NOT_LISTED {
                 continue;
             }
             let [vertices, edges] = scratch.cache.ranges[pair];
             let entries = &scratch.cache.entries[scratch.cache.current];
             let sj = &bodies[j].surface;
             let bvh = &scratch.bvhs[j];
+            let now = &mut scratch.now;
             let mut k = vertices.0 as usize;
             while k < vertices.1 as usize {
                 let v = entries[k].feature[0];
@@ -898,7 +902,7 @@ pub fn respond_to_body_contacts(
                 while k < vertices.1 as usize && entries[k].feature[0] == v {
                     let t = entries[k].triangle;
                     k += 1;
-                    if !bvh.triangle_box(t as usize).overlaps(&swept) {
+                    if !now.of(j, t as usize, &bodies[j]).overlaps(&swept) {
                         continue;
                     }
                     counters.candidate_pairs += 1;
@@ -925,7 +929,7 @@ pub fn respond_to_body_contacts(
                 while k < edges.1 as usize && entries[k].feature == feature {
                     let found = entries[k].triangle as usize;
                     k += 1;
-                    if !bvh.triangle_box(found).overlaps(&swept) {
+                    if !now.of(j, found, &bodies[j]).overlaps(&swept) {
                         continue;
                     }
                     counters.candidate_pairs += 1;
@@ -1031,7 +1035,6 @@ pub fn respond_to_body_contacts(
                 continue;
             }
             let r = nodes.refs[k];
-            scratch.bvhs[r.body].mark_moved(r.node);
             let end = end_of(bodies, r);
             scratch.tight_bounds[r.body].include(&end);
             let motion = (end - start_of(bodies, r)).norm();
@@ -1047,6 +1050,18 @@ pub fn respond_to_body_contacts(
 const CANDIDATE_SLACK: f64 = 2.5e-4;
 /// Capacity of the response's candidate list (a feature of one body against a triangle of another).
 const CANDIDATE_CAPACITY: usize = 1 << 16;
+/// Margin (m) of the triangles' boxes in the hierarchies fitted to the references: two boxes that
+/// meet within twice the slack (and rounding) meet once each is grown by it.
+const LIST_MARGIN: f64 = 1.5 * CANDIDATE_SLACK;
+
+/// A pair of bodies' candidates not listed.
+const NOT_LISTED: u8 = 0;
+/// Listed, and held while the two bodies stay within their slack.
+const LISTED: u8 = 1;
+/// Listed for this tick only (a body with no reference): used this tick, listed again the next.
+const LISTED_FOR_NOW: u8 = 2;
+/// Listed in part (a list was full; counted as an overflow): used this tick, listed again the next.
+const LISTED_IN_PART: u8 = 3;
 
 /// A vertex (`[v, v]`) or an edge (`[a, b]`, a < b) of one body and a triangle of another whose
 /// boxes may meet within the skin.
@@ -1056,15 +1071,19 @@ struct Candidate {
     triangle: u32,
 }
 
-/// The response's candidate pairs, kept from tick to tick (a Verlet list). Each body keeps the box
-/// of each node's trajectory when its pairs were last listed (its *reference*); the pairs of two
-/// bodies are listed from their references' hierarchies with the skin and three times the slack,
-/// and hold while every node's trajectory stays within the slack of its reference box: a vertex's
-/// (edge's) swept box grown by the skin then meets a triangle's box only if their references,
-/// grown by the skin and twice the slack, meet (the third slack covers rounding, far above it).
-/// A body whose nodes left their slack (or whose topology changed) takes a new reference and its
-/// pairs are listed again; a resting stack lists once. Each tick the listed pairs are checked with
-/// that tick's boxes, so the candidates are those of a query every tick.
+/// The candidate pairs of the response and of the net, kept from tick to tick (a Verlet list). Each
+/// body keeps the box of each node's trajectory when its pairs were last listed (its *reference*);
+/// the pairs of two bodies are listed from hierarchies fitted to their references, grown by the
+/// skin (the response's) and three times the slack, and hold while every node's trajectory stays
+/// within the slack of its reference box: two boxes of this tick (a vertex's or edge's grown by the
+/// skin, a triangle's) then meet only if their references, grown by the skin and twice the slack,
+/// meet (the third slack covers rounding, far above it). A body whose nodes left their slack (or
+/// whose topology changed) takes a new reference and its pairs are listed again; a resting stack
+/// lists once. The net's rounds only shorten trajectories, within the same boxes. The pairs are
+/// checked with this tick's boxes ([`TriangleBoxes`]) where they are used, so the candidates are
+/// those of queries of hierarchies refitted every tick; the net's triangle pairs keep the order of a
+/// traversal of the two hierarchies (which does not depend on the boxes: a traversal of boxes that
+/// meet less gives a subsequence).
 #[derive(Clone, Debug)]
 struct CandidateCache {
     /// Per body, the lower and upper corners of each node's reference box (room for its most
@@ -1075,12 +1094,18 @@ struct CandidateCache {
     reference: Vec<Option<(u64, usize)>>,
     /// Per body, whether its pairs are to be listed again this tick.
     renewed: Vec<bool>,
-    /// Per ordered pair of bodies (i × `slots` + j): whether its candidates are listed, and their
-    /// ranges (vertices of i, then edges of i when j > i) in the list in use.
-    listed: Vec<bool>,
+    /// Per ordered pair of bodies (i × `slots` + j): whether its candidates are listed
+    /// ([`LISTED`]; [`LISTED_FOR_NOW`] or, when a list was full, [`LISTED_IN_PART`]: used this
+    /// tick, listed again the next), and their ranges (vertices of i, then edges of i when j > i) in the list in use, and
+    /// when i < j the range of its triangle pairs (the collision net's) in theirs.
+    listed: Vec<u8>,
     ranges: Vec<[(u32, u32); 2]>,
-    /// The list in use (grouped by pair, then by feature) and the one a new listing is written to.
+    pair_ranges: Vec<(u32, u32)>,
+    /// The lists in use (grouped by pair, then by feature) and the ones a new listing is written
+    /// to: the response's candidates, and the net's triangle pairs (whose boxes may meet, in the
+    /// order of the hierarchies' traversal).
     entries: [Vec<Candidate>; 2],
+    pairs: [Vec<(u32, u32)>; 2],
     current: usize,
     /// The bodies the tables have room for.
     slots: usize,
@@ -1100,11 +1125,16 @@ impl CandidateCache {
             upper: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
             reference: vec![None; slots],
             renewed: vec![false; slots],
-            listed: vec![false; slots * slots],
+            listed: vec![NOT_LISTED; slots * slots],
             ranges: vec![[(0, 0); 2]; slots * slots],
+            pair_ranges: vec![(0, 0); slots * slots],
             entries: [
                 Vec::with_capacity(CANDIDATE_CAPACITY),
                 Vec::with_capacity(CANDIDATE_CAPACITY),
+            ],
+            pairs: [
+                Vec::with_capacity(PAIR_CAPACITY),
+                Vec::with_capacity(PAIR_CAPACITY),
             ],
             current: 0,
             slots,
@@ -1167,10 +1197,11 @@ impl CandidateCache {
         }
     }
 
-    /// Brings the list up to date for the pairs of bodies near each other this tick (`bounds`
-    /// grown by the skin meet): bodies whose nodes left their slack take a new reference, and the
-    /// pairs of such bodies, and the near pairs not listed yet, are listed from the hierarchies
-    /// refitted to the references. (The hierarchies are then the references', not the tick's.)
+    /// Brings the lists up to date for the pairs of bodies near each other (`bounds` meet):
+    /// bodies whose nodes left their slack take a new reference, and the pairs of such bodies, the
+    /// pairs listed in part, and the near pairs not listed yet, are listed from the hierarchies
+    /// refitted to the references (grown by [`LIST_MARGIN`]). The hierarchies are the references':
+    /// this tick's boxes come from [`TriangleBoxes`].
     #[allow(clippy::too_many_arguments)]
     fn list(
         &mut self,
@@ -1183,6 +1214,7 @@ impl CandidateCache {
         counters: &mut BodyContactCounters,
     ) {
         let n = bodies.len().min(self.slots);
+        let slots = self.slots;
         for k in 0..n {
             self.renewed[k] = near[k]
                 && (!self.keep || self.reference[k].is_none() || !self.holds(k, &bodies[k]));
@@ -1198,22 +1230,20 @@ impl CandidateCache {
         let mut any = false;
         for i in 0..n {
             for j in 0..n {
-                let pair = i * self.slots + j;
-                if self.renewed[i] || self.renewed[j] {
-                    self.listed[pair] = false;
+                let pair = i * slots + j;
+                if self.renewed[i] || self.renewed[j] || self.listed[pair] > LISTED {
+                    self.listed[pair] = NOT_LISTED;
                 }
-                if !self.listed[pair] && pairs_of(i, j) {
-                    any = true;
-                }
+                any |= self.listed[pair] == NOT_LISTED && pairs_of(i, j);
             }
         }
         if !any {
             return;
         }
         // The hierarchies of the bodies of the pairs to list, refitted to their references.
-        let slots = self.slots;
-        let to_list =
-            |i: usize, j: usize, listed: &[bool]| !listed[i * slots + j] && pairs_of(i, j);
+        let to_list = |i: usize, j: usize, listed: &[u8]| {
+            listed[i * slots + j] == NOT_LISTED && pairs_of(i, j)
+        };
         for (k, (body, bvh)) in bodies.iter().zip(bvhs.iter_mut()).enumerate().take(n) {
             let wanted = (0..n).any(|o| to_list(k, o, &self.listed) || to_list(o, k, &self.listed));
             if !wanted {
@@ -1225,22 +1255,31 @@ impl CandidateCache {
                 bvh.set_built_version(body.topology_version);
             }
             let (lower, upper) = self.boxes(k, body);
-            bvh.refit(&s.triangles, lower, upper, 0.0);
+            bvh.refit(&s.triangles, lower, upper, LIST_MARGIN);
         }
-        // A new list: the pairs that hold, copied; the others listed.
-        let (used, next) = if self.current == 0 {
-            let (a, b) = self.entries.split_at_mut(1);
-            (&a[0], &mut b[0])
+        // New lists: the pairs that hold, copied; the others listed.
+        let current = self.current;
+        let [first, second] = &mut self.entries;
+        let (used, next) = if current == 0 {
+            (&*first, second)
         } else {
-            let (a, b) = self.entries.split_at_mut(1);
-            (&b[0], &mut a[0])
+            (&*second, first)
+        };
+        let [first_pairs, second_pairs] = &mut self.pairs;
+        let (used_pairs, next_pairs) = if current == 0 {
+            (&*first_pairs, second_pairs)
+        } else {
+            (&*second_pairs, first_pairs)
         };
         next.clear();
-        let reach = CONTACT_SKIN + 3.0 * CANDIDATE_SLACK;
+        next_pairs.clear();
+        // A vertex's (edge's) box grown by this, against triangle boxes grown by the margin: the
+        // skin and three times the slack in all.
+        let reach = CONTACT_SKIN + 3.0 * CANDIDATE_SLACK - LIST_MARGIN;
         for (i, body) in bodies.iter().enumerate().take(n) {
             for j in 0..n {
-                let pair = i * self.slots + j;
-                if self.listed[pair] {
+                let pair = i * slots + j;
+                if self.listed[pair] == LISTED {
                     let mut ranges = self.ranges[pair];
                     for range in &mut ranges {
                         let start = next.len() as u32;
@@ -1248,6 +1287,10 @@ impl CandidateCache {
                         *range = (start, next.len() as u32);
                     }
                     self.ranges[pair] = ranges;
+                    let range = self.pair_ranges[pair];
+                    let start = next_pairs.len() as u32;
+                    next_pairs.extend_from_slice(&used_pairs[range.0 as usize..range.1 as usize]);
+                    self.pair_ranges[pair] = (start, next_pairs.len() as u32);
                     continue;
                 }
                 if !pairs_of(i, j) {
@@ -1260,7 +1303,7 @@ impl CandidateCache {
                         &body.surface.next_position_in_world[..],
                     ),
                 };
-                let complete = list_pair(
+                let mut complete = list_pair(
                     (i, j, body),
                     (lower_i, upper_i),
                     bvhs,
@@ -1269,17 +1312,101 @@ impl CandidateCache {
                     next,
                     &mut self.ranges[pair],
                 );
+                // The net's triangle pairs, once per pair of bodies (i < j).
+                let start = next_pairs.len() as u32;
+                if i < j {
+                    let (left, right) = bvhs.split_at_mut(j);
+                    complete &= left[i].overlapping_pairs(&right[0], next_pairs);
+                }
+                self.pair_ranges[pair] = (start, next_pairs.len() as u32);
                 counters.listed_pairs += 1;
-                if complete {
-                    // Bodies with no reference are listed again next tick.
-                    self.listed[pair] = self.reference[i].is_some() && self.reference[j].is_some();
+                // Bodies with no reference are listed again next tick.
+                self.listed[pair] = if !complete {
+                    LISTED_IN_PART
+                } else if self.reference[i].is_some() && self.reference[j].is_some() {
+                    LISTED
                 } else {
+                    LISTED_FOR_NOW
+                };
+                if !complete {
                     counters.overflows += 1;
-                    self.listed[pair] = false;
                 }
             }
         }
         self.current = 1 - self.current;
+    }
+}
+
+/// Each body's triangles' boxes over this tick (or net round), taken when first asked for and kept
+/// until [`TriangleBoxes::begin`]: the boxes a refit with no margin gives (the minima and maxima of
+/// the corners' start and end positions), for the triangles the kept candidates name.
+#[derive(Clone, Debug)]
+struct TriangleBoxes {
+    boxes: Vec<Vec<Aabb>>,
+    /// Per body and triangle, the stamp its box was taken at (0: never).
+    stamps: Vec<Vec<u32>>,
+    stamp: u32,
+}
+
+impl TriangleBoxes {
+    fn new(bodies: &[Body], slots: usize, spare_triangles: usize) -> Self {
+        let room = |k: usize| {
+            bodies
+                .get(k)
+                .map_or(spare_triangles, |b| b.mesh_capacity().1)
+        };
+        Self {
+            boxes: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            stamps: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            stamp: 0,
+        }
+    }
+
+    /// Forgets every box (the trajectories changed), and makes room for the bodies' triangles.
+    fn begin(&mut self, bodies: &[Body]) {
+        self.stamp = self.stamp.wrapping_add(1);
+        for (k, body) in bodies.iter().enumerate().take(self.stamps.len()) {
+            let count = body.surface.triangles.len();
+            let (boxes, stamps) = (&mut self.boxes[k], &mut self.stamps[k]);
+            if self.stamp == 0 || stamps.len() != count {
+                stamps.clear();
+                boxes.clear();
+                if count <= stamps.capacity() && count <= boxes.capacity() {
+                    stamps.resize(count, 0);
+                    boxes.resize(count, Aabb::empty());
+                }
+            }
+        }
+        if self.stamp == 0 {
+            self.stamp = 1;
+        }
+    }
+
+    /// Triangle `t` of body `k` swept over the tick.
+    #[inline]
+    fn of(&mut self, k: usize, t: usize, body: &Body) -> Aabb {
+        let s = &body.surface;
+        let compute = || {
+            let mut aabb = Aabb::empty();
+            for &v in &s.triangles[t] {
+                let v = v as usize;
+                aabb.merge(&Aabb::of_pair(
+                    &s.position_in_world[v],
+                    &s.next_position_in_world[v],
+                ));
+            }
+            aabb
+        };
+        match self.stamps.get_mut(k).and_then(|stamps| stamps.get_mut(t)) {
+            Some(stamp) if *stamp == self.stamp => self.boxes[k][t],
+            Some(stamp) => {
+                *stamp = self.stamp;
+                let aabb = compute();
+                self.boxes[k][t] = aabb;
+                aabb
+            }
+            None => compute(),
+        }
     }
 }
 
@@ -1406,22 +1533,6 @@ fn mark_near(group: &[usize], bounds: &[Aabb], near: &mut [bool]) -> bool {
         }
     }
     any
-}
-
-/// Builds `bvh` again after a topology change (triangles renumbered), then refits it to the tick's
-/// trajectories grown by `margin`.
-fn refit_hierarchy(b: &Body, bvh: &mut TriangleBvh, margin: f64) {
-    let s = &b.surface;
-    if !bvh.is_built_for(b.topology_version, s.triangles.len()) {
-        bvh.rebuild(&s.triangles, &s.position_in_world);
-        bvh.set_built_version(b.topology_version);
-    }
-    bvh.refit(
-        &s.triangles,
-        &s.position_in_world,
-        &s.next_position_in_world,
-        margin,
-    );
 }
 
 /// The box of `nodes` of `body` over the tick (start and end positions).
