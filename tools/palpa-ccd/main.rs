@@ -14,7 +14,8 @@
 //! (at least once, and for at least [`MIN_TIMING`] in all) so that short files still time well.
 //! `mean_ns`, `p999_ns` and `max_ns` are the distribution of the time of one query: each query is
 //! timed on its own, [`QUERY_ROUNDS`] rounds of enough calls to last [`QUERY_SPAN`], its time being
-//! the least of the rounds' means (what the query costs, not what the machine's other work added).
+//! the least of the rounds' means (what the query costs, not what the machine's other work added);
+//! a round goes over all of a file's queries, so one query's rounds are apart in time.
 //! Parsing is not timed. Bad input stops the run with a message naming the file and line, exit 1.
 //!
 //! With `--queries`, every query also gets a line of its own before its file's line:
@@ -36,7 +37,7 @@ use std::time::{Duration, Instant};
 /// Least total time spent timing one file's queries.
 const MIN_TIMING: Duration = Duration::from_millis(20);
 /// Rounds of the per-query timing; the least round counts.
-const QUERY_ROUNDS: usize = 3;
+const QUERY_ROUNDS: usize = 5;
 /// Least duration of one round of one query's calls.
 const QUERY_SPAN: Duration = Duration::from_micros(20);
 
@@ -267,21 +268,24 @@ fn query_line(
     )
 }
 
-/// The time of one query (ns): the least over [`QUERY_ROUNDS`] rounds of the mean of enough calls
-/// to last [`QUERY_SPAN`].
-fn time_query(kind: Kind, q: &Query, settings: &CcdSettings) -> f64 {
-    let mut best = f64::INFINITY;
+/// The time of each query (ns): the least over [`QUERY_ROUNDS`] rounds of the mean of enough calls
+/// to last [`QUERY_SPAN`]. The rounds go over all the queries in turn, so that one query's rounds
+/// are apart in time and a stall of the machine (a shared VM's) cannot fall on all of them.
+fn time_queries(kind: Kind, queries: &[Query], settings: &CcdSettings) -> Vec<f64> {
+    let mut best = vec![f64::INFINITY; queries.len()];
     for _ in 0..QUERY_ROUNDS {
-        let mut calls = 0u32;
-        let start = Instant::now();
-        loop {
-            std::hint::black_box(detect(kind, std::hint::black_box(q), settings));
-            calls += 1;
-            if start.elapsed() >= QUERY_SPAN {
-                break;
+        for (q, best) in queries.iter().zip(best.iter_mut()) {
+            let mut calls = 0u32;
+            let start = Instant::now();
+            loop {
+                std::hint::black_box(detect(kind, std::hint::black_box(q), settings));
+                calls += 1;
+                if start.elapsed() >= QUERY_SPAN {
+                    break;
+                }
             }
+            *best = best.min(start.elapsed().as_nanos() as f64 / f64::from(calls));
         }
-        best = best.min(start.elapsed().as_nanos() as f64 / f64::from(calls));
     }
     best
 }
@@ -300,10 +304,7 @@ fn evaluate(kind: Kind, queries: &[Query], settings: &CcdSettings) -> (Report, V
     if queries.is_empty() {
         return (report, Vec::new());
     }
-    let times = queries
-        .iter()
-        .map(|q| time_query(kind, q, settings))
-        .collect();
+    let times = time_queries(kind, queries, settings);
     let mut calls = 0usize;
     let start = Instant::now();
     loop {
