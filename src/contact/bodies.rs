@@ -513,8 +513,8 @@ pub fn resolve_body_collisions(
             scratch.cache.list(
                 bodies,
                 group,
-                &scratch.bounds,
-                &scratch.near,
+                (&scratch.bounds, &scratch.near),
+                false,
                 &mut scratch.bvhs,
                 (&mut scratch.near_triangles, &mut scratch.found),
                 &mut counters,
@@ -856,8 +856,8 @@ pub fn respond_to_body_contacts(
     scratch.cache.list(
         bodies,
         group,
-        &scratch.bounds,
-        &scratch.near,
+        (&scratch.bounds, &scratch.near),
+        true,
         &mut scratch.bvhs,
         (&mut scratch.near_triangles, &mut scratch.found),
         &mut counters,
@@ -1050,9 +1050,15 @@ pub fn respond_to_body_contacts(
 const CANDIDATE_SLACK: f64 = 2.5e-4;
 /// Capacity of the response's candidate list (a feature of one body against a triangle of another).
 const CANDIDATE_CAPACITY: usize = 1 << 16;
-/// Margin (m) of the triangles' boxes in the hierarchies fitted to the references: two boxes that
-/// meet within twice the slack (and rounding) meet once each is grown by it.
-const LIST_MARGIN: f64 = 1.5 * CANDIDATE_SLACK;
+/// A body that took a new reference on this many ticks in a row takes the next with no slack (its
+/// pairs listed every tick while it moves so fast, as a query every tick would, where a larger reach
+/// would only cost more), and every [`RETRY_EVERY`]-th tick of such a run tries the slack again.
+const FAST_STREAK: u32 = 3;
+const RETRY_EVERY: u32 = 32;
+/// Margin of a body's triangles' boxes in the hierarchy fitted to its reference, and of its
+/// vertices' and edges' boxes beyond the skin in its queries, per metre of its slack: two boxes
+/// that meet within the two bodies' slacks (and rounding) meet once each is grown by its margin.
+const LIST_MARGIN_PER_SLACK: f64 = 1.5;
 
 /// A pair of bodies' candidates not listed.
 const NOT_LISTED: u8 = 0;
@@ -1092,8 +1098,13 @@ struct CandidateCache {
     lower: Vec<Vec<Vec3>>,
     upper: Vec<Vec<Vec3>>,
     reference: Vec<Option<(u64, usize)>>,
-    /// Per body, whether its pairs are to be listed again this tick.
+    /// Per body, the slack of its reference (m): [`CANDIDATE_SLACK`], or 0 for a body that left it
+    /// on several ticks in a row.
+    slack: Vec<f64>,
+    /// Per body, whether its pairs are to be listed again this tick, and on how many ticks in a row
+    /// (up to this one) they were.
     renewed: Vec<bool>,
+    streak: Vec<u32>,
     /// Per ordered pair of bodies (i × `slots` + j): whether its candidates are listed
     /// ([`LISTED`]; [`LISTED_FOR_NOW`] or, when a list was full, [`LISTED_IN_PART`]: used this
     /// tick, listed again the next), and their ranges (vertices of i, then edges of i when j > i) in the list in use, and
@@ -1124,7 +1135,9 @@ impl CandidateCache {
             lower: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
             upper: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
             reference: vec![None; slots],
+            slack: vec![0.0; slots],
             renewed: vec![false; slots],
+            streak: vec![0; slots],
             listed: vec![NOT_LISTED; slots * slots],
             ranges: vec![[(0, 0); 2]; slots * slots],
             pair_ranges: vec![(0, 0); slots * slots],
@@ -1150,7 +1163,7 @@ impl CandidateCache {
         if self.reference[k] != Some((body.topology_version, n)) {
             return false;
         }
-        let slack = Vec3::repeat(CANDIDATE_SLACK);
+        let slack = Vec3::repeat(self.slack[k]);
         let mut inside = true;
         for (((p, q), lo), hi) in s
             .position_in_world
@@ -1170,6 +1183,12 @@ impl CandidateCache {
 
     /// Body `k`'s trajectories this tick as its reference (none when there is no room for them).
     fn renew(&mut self, k: usize, body: &Body) {
+        let streak = self.streak[k];
+        self.slack[k] = if streak >= FAST_STREAK && streak % RETRY_EVERY != 0 {
+            0.0
+        } else {
+            CANDIDATE_SLACK
+        };
         let s = &body.surface;
         let n = s.position_in_world.len();
         let (lower, upper) = (&mut self.lower[k], &mut self.upper[k]);
@@ -1200,15 +1219,15 @@ impl CandidateCache {
     /// Brings the lists up to date for the pairs of bodies near each other (`bounds` meet):
     /// bodies whose nodes left their slack take a new reference, and the pairs of such bodies, the
     /// pairs listed in part, and the near pairs not listed yet, are listed from the hierarchies
-    /// refitted to the references (grown by [`LIST_MARGIN`]). The hierarchies are the references':
+    /// refitted to the references (grown by their margins). The hierarchies are the references':
     /// this tick's boxes come from [`TriangleBoxes`].
     #[allow(clippy::too_many_arguments)]
     fn list(
         &mut self,
         bodies: &[Body],
         group: &[usize],
-        bounds: &[Aabb],
-        near: &[bool],
+        (bounds, near): (&[Aabb], &[bool]),
+        first_of_tick: bool,
         bvhs: &mut [TriangleBvh],
         (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
         counters: &mut BodyContactCounters,
@@ -1218,6 +1237,13 @@ impl CandidateCache {
         for k in 0..n {
             self.renewed[k] = near[k]
                 && (!self.keep || self.reference[k].is_none() || !self.holds(k, &bodies[k]));
+            if first_of_tick {
+                self.streak[k] = if self.renewed[k] {
+                    self.streak[k].saturating_add(1)
+                } else {
+                    0
+                };
+            }
             if self.renewed[k] {
                 self.renew(k, &bodies[k]);
             }
@@ -1255,7 +1281,12 @@ impl CandidateCache {
                 bvh.set_built_version(body.topology_version);
             }
             let (lower, upper) = self.boxes(k, body);
-            bvh.refit(&s.triangles, lower, upper, LIST_MARGIN);
+            bvh.refit(
+                &s.triangles,
+                lower,
+                upper,
+                LIST_MARGIN_PER_SLACK * self.slack[k],
+            );
         }
         // New lists: the pairs that hold, copied; the others listed.
         let current = self.current;
@@ -1273,9 +1304,7 @@ impl CandidateCache {
         };
         next.clear();
         next_pairs.clear();
-        // A vertex's (edge's) box grown by this, against triangle boxes grown by the margin: the
-        // skin and three times the slack in all.
-        let reach = CONTACT_SKIN + 3.0 * CANDIDATE_SLACK - LIST_MARGIN;
+
         for (i, body) in bodies.iter().enumerate().take(n) {
             for j in 0..n {
                 let pair = i * slots + j;
@@ -1307,7 +1336,9 @@ impl CandidateCache {
                     (i, j, body),
                     (lower_i, upper_i),
                     bvhs,
-                    reach,
+                    // A vertex's (edge's) box grown by the skin and its body's margin, against
+                    // triangle boxes grown by theirs.
+                    CONTACT_SKIN + LIST_MARGIN_PER_SLACK * self.slack[i],
                     (near_triangles, found),
                     next,
                     &mut self.ranges[pair],
