@@ -1163,7 +1163,7 @@ impl World {
             counters.bodies.overflows += response.overflows;
             counters.bodies.contacts = response.contacts;
             counters.bodies.contacts_dropped = response.contacts_dropped;
-            counters.bodies.listed_pairs = response.listed_pairs;
+            counters.bodies.listed_pairs += response.listed_pairs;
         }
         clock.enter(Stage::Commit);
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {

@@ -84,7 +84,8 @@ pub struct BodyContactCounters {
     pub contacts: u32,
     /// Contacts beyond the contact list's capacity (left to the collision net; counted).
     pub contacts_dropped: u32,
-    /// Pairs of bodies whose candidates the response listed from the hierarchies this tick (the
+    /// Ordered pairs of bodies whose candidates were listed from the hierarchies this tick, by the
+    /// response and again by the net where the response's pushes took a node out of its slack (the
     /// others' were kept from an earlier tick).
     pub listed_pairs: u32,
 }
@@ -193,7 +194,7 @@ pub struct BodyContactScratch {
     tight_bounds: Vec<Aabb>,
     /// The triangles' boxes over this tick (or net round).
     now: TriangleBoxes,
-    /// The response's candidate pairs, listed again only where bodies moved.
+    /// The response's and the net's candidate pairs, listed again only where bodies moved.
     cache: CandidateCache,
     /// Each body's largest node displacement over the tick (m), at least.
     max_motion: Vec<f64>,
