@@ -59,3 +59,60 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 pub use body::{Body, BodyParams, Placement};
 pub use scene::{Scene, SceneError, load_scene, parse_scene};
 pub use world::World;
+
+/// A copy of `v` with the same room reserved. A derived `Clone` copies only the contents, and the
+/// tick's code takes a list's room as its limit (a full list is an overflow, counted, never grown on
+/// the tick): a world cloned with bare copies would drop what its lists no longer hold.
+pub(crate) fn clone_with_room<T: Clone>(v: &Vec<T>) -> Vec<T> {
+    let mut copy = Vec::with_capacity(v.capacity());
+    copy.extend_from_slice(v);
+    copy
+}
+
+/// A list whose room is part of its meaning: the tick's code reads a full list (its length at its
+/// capacity) as its limit, so a copy must keep the room, which a `Vec`'s derived `Clone` does not.
+/// Derefs to the `Vec`.
+#[derive(Debug, Default, PartialEq)]
+pub struct Room<T>(Vec<T>);
+
+impl<'a, T> IntoIterator for &'a Room<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
+}
+
+impl<'a, T> IntoIterator for &'a mut Room<T> {
+    type Item = &'a mut T;
+    type IntoIter = std::slice::IterMut<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter_mut()
+    }
+}
+
+impl<T> Room<T> {
+    /// An empty list with room for `capacity` items.
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self(Vec::with_capacity(capacity))
+    }
+}
+
+impl<T: Clone> Clone for Room<T> {
+    fn clone(&self) -> Self {
+        Self(clone_with_room(&self.0))
+    }
+}
+
+impl<T> std::ops::Deref for Room<T> {
+    type Target = Vec<T>;
+    fn deref(&self) -> &Vec<T> {
+        &self.0
+    }
+}
+
+impl<T> std::ops::DerefMut for Room<T> {
+    fn deref_mut(&mut self) -> &mut Vec<T> {
+        &mut self.0
+    }
+}

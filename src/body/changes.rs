@@ -15,10 +15,10 @@ pub struct TopologyChanges {
     /// The version the recorded changes bring the body to.
     to_version: u64,
     /// Springs rewritten or added (indices, in increasing order once sealed).
-    edges: Vec<u32>,
+    edges: crate::Room<u32>,
     /// Nodes whose mass, link, air damping or springs changed, and new nodes (in increasing order
     /// once sealed).
-    nodes: Vec<u32>,
+    nodes: crate::Room<u32>,
     /// The record ran out of room: it does not cover its versions.
     overflow: bool,
 }
@@ -40,8 +40,8 @@ impl TopologyChanges {
     /// A record with room for `edges` springs and `nodes` nodes per span of versions.
     pub fn with_capacity(edges: usize, nodes: usize) -> Self {
         Self {
-            edges: Vec::with_capacity(edges),
-            nodes: Vec::with_capacity(nodes),
+            edges: crate::Room::with_capacity(edges),
+            nodes: crate::Room::with_capacity(nodes),
             ..Self::default()
         }
     }

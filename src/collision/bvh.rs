@@ -27,7 +27,7 @@ struct Node {
 }
 
 /// A hierarchy of swept triangle boxes for one body.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct TriangleBvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
@@ -45,6 +45,25 @@ pub struct TriangleBvh {
     /// Scratch of the refit: each node's box over the tick (a node is shared by about six
     /// triangles: its box is taken once).
     node_boxes: Vec<Aabb>,
+}
+
+impl Clone for TriangleBvh {
+    /// A copy with the same room reserved (its queries take their stack's room as their limit).
+    fn clone(&self) -> Self {
+        use crate::clone_with_room as room;
+        Self {
+            nodes: room(&self.nodes),
+            order: room(&self.order),
+            triangle_boxes: room(&self.triangle_boxes),
+            centroids: room(&self.centroids),
+            stack: room(&self.stack),
+            built_version: self.built_version,
+            owned: room(&self.owned),
+            side_keys: room(&self.side_keys),
+            node_seen: room(&self.node_seen),
+            node_boxes: room(&self.node_boxes),
+        }
+    }
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).

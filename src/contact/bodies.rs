@@ -24,6 +24,7 @@
 
 use crate::Vec3;
 use crate::body::Body;
+use crate::clone_with_room;
 use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::tool::{
@@ -172,7 +173,7 @@ impl ContactNodes {
 }
 
 /// Scratch memory of the stage, sized when the world is assembled.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct BodyContactScratch {
     bvhs: Vec<TriangleBvh>,
     pairs: Vec<(u32, u32)>,
@@ -1091,7 +1092,7 @@ struct Candidate {
 /// those of queries of hierarchies refitted every tick; the net's triangle pairs keep the order of a
 /// traversal of the two hierarchies (which does not depend on the boxes: a traversal of boxes that
 /// meet less gives a subsequence).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct CandidateCache {
     /// Per body, the lower and upper corners of each node's reference box (room for its most
     /// nodes), and the topology version and node count of the reference (`None`: none taken, or
@@ -1372,7 +1373,7 @@ impl CandidateCache {
 /// Each body's triangles' boxes over this tick (or net round), taken when first asked for and kept
 /// until [`TriangleBoxes::begin`]: the boxes a refit with no margin gives (the minima and maxima of
 /// the corners' start and end positions), for the triangles the kept candidates name.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct TriangleBoxes {
     boxes: Vec<Vec<Aabb>>,
     /// Per body and triangle, the stamp its box was taken at (0: never).
@@ -1438,6 +1439,76 @@ impl TriangleBoxes {
                 aabb
             }
             None => compute(),
+        }
+    }
+}
+
+/// Lists of lists, each copied with its room.
+fn clone_nested<T: Clone>(v: &Vec<Vec<T>>) -> Vec<Vec<T>> {
+    let mut copy = Vec::with_capacity(v.capacity());
+    copy.extend(v.iter().map(clone_with_room));
+    copy
+}
+
+impl Clone for BodyContactScratch {
+    /// A copy with the same room reserved in every list (the stage takes a list's room as its
+    /// limit).
+    fn clone(&self) -> Self {
+        Self {
+            bvhs: clone_with_room(&self.bvhs),
+            pairs: clone_with_room(&self.pairs),
+            contacts: clone_with_room(&self.contacts),
+            contact_nodes: clone_with_room(&self.contact_nodes),
+            found: clone_with_room(&self.found),
+            near_triangles: clone_with_room(&self.near_triangles),
+            settings: self.settings,
+            bounds: clone_with_room(&self.bounds),
+            near: clone_with_room(&self.near),
+            prepared: self.prepared,
+            tight_bounds: clone_with_room(&self.tight_bounds),
+            now: self.now.clone(),
+            cache: self.cache.clone(),
+            max_motion: clone_with_room(&self.max_motion),
+            answered: clone_nested(&self.answered),
+            forces: clone_with_room(&self.forces),
+            work: clone_with_room(&self.work),
+        }
+    }
+}
+
+impl Clone for CandidateCache {
+    fn clone(&self) -> Self {
+        Self {
+            lower: clone_nested(&self.lower),
+            upper: clone_nested(&self.upper),
+            reference: clone_with_room(&self.reference),
+            slack: clone_with_room(&self.slack),
+            renewed: clone_with_room(&self.renewed),
+            streak: clone_with_room(&self.streak),
+            listed: clone_with_room(&self.listed),
+            ranges: clone_with_room(&self.ranges),
+            pair_ranges: clone_with_room(&self.pair_ranges),
+            entries: [
+                clone_with_room(&self.entries[0]),
+                clone_with_room(&self.entries[1]),
+            ],
+            pairs: [
+                clone_with_room(&self.pairs[0]),
+                clone_with_room(&self.pairs[1]),
+            ],
+            current: self.current,
+            slots: self.slots,
+            keep: self.keep,
+        }
+    }
+}
+
+impl Clone for TriangleBoxes {
+    fn clone(&self) -> Self {
+        Self {
+            boxes: clone_nested(&self.boxes),
+            stamps: clone_nested(&self.stamps),
+            stamp: self.stamp,
         }
     }
 }

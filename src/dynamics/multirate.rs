@@ -73,7 +73,7 @@ pub struct Multirate {
     /// The body's topology version the classification is for.
     synced_version: u64,
     /// A node's springs (scratch of [`Multirate::follow`]).
-    incident: Vec<u32>,
+    incident: crate::Room<u32>,
     /// The nodes' terms of the rigid component's bounds, summed in a fixed binary tree over the
     /// node slots (leaves from `rigid_width`): a change at a few nodes is summed again along their
     /// paths to the root, and the sums depend on the nodes' terms only, not on the changes'
@@ -97,16 +97,16 @@ pub struct Multirate {
     deep_force: Vec<Vec3>,
     local: Vec<u32>,
     start: Vec<u32>,
-    neighbour: Vec<u32>,
+    neighbour: crate::Room<u32>,
     edge: Vec<u32>,
     /// The fast list and neighbour lists [`Multirate::follow`] builds beside the current ones
     /// (swapped in when done).
-    fast_spare: Vec<u32>,
-    start_spare: Vec<u32>,
-    neighbour_spare: Vec<u32>,
+    fast_spare: crate::Room<u32>,
+    start_spare: crate::Room<u32>,
+    neighbour_spare: crate::Room<u32>,
     edge_spare: Vec<u32>,
     /// The nodes whose row may have changed: the changed ones and the ends of the changed springs.
-    dirty: Vec<u32>,
+    dirty: crate::Room<u32>,
     /// Followed changes whose classification was made again at the changed nodes' rows only (the
     /// rigid component not sub-stepped).
     pub far_classifications: u64,
@@ -156,7 +156,7 @@ impl Multirate {
             own_level: Vec::with_capacity(n),
             level_count: [0; MAX_LEVEL as usize + 1],
             synced_version: 0,
-            incident: Vec::with_capacity(INCIDENT_ROOM),
+            incident: crate::Room::with_capacity(INCIDENT_ROOM),
             rigid_tree: vec![[0.0; RIGID_TERMS]; 2 * n.next_power_of_two()],
             rigid_width: n.next_power_of_two(),
             rigid_filled: 0,
@@ -169,13 +169,13 @@ impl Multirate {
             deep_force: Vec::with_capacity(n),
             local: Vec::with_capacity(n),
             start: Vec::with_capacity(n + 1),
-            neighbour: Vec::with_capacity(2 * m),
+            neighbour: crate::Room::with_capacity(2 * m),
             edge: Vec::with_capacity(2 * m),
-            fast_spare: Vec::with_capacity(n),
-            start_spare: Vec::with_capacity(n + 1),
-            neighbour_spare: Vec::with_capacity(2 * m),
+            fast_spare: crate::Room::with_capacity(n),
+            start_spare: crate::Room::with_capacity(n + 1),
+            neighbour_spare: crate::Room::with_capacity(2 * m),
             edge_spare: Vec::with_capacity(2 * m),
-            dirty: Vec::with_capacity(n + 1),
+            dirty: crate::Room::with_capacity(n + 1),
             far_classifications: 0,
             x: Vec::with_capacity(n),
             v: Vec::with_capacity(n),

@@ -301,11 +301,11 @@ pub struct Cutter {
     crossings: Vec<Crossing>,
     split_rest: Vec<Vec3>,
     affected: Vec<Affected>,
-    path_edges: Vec<(u32, u32)>,
+    path_edges: crate::Room<(u32, u32)>,
     /// Where this step's own path edges start in `path_edges` (those before are pending ones).
     new_path_from: usize,
     /// Path edges not opened yet (a slit of one edge cannot open): kept for the next steps.
-    pending: Vec<(u32, u32)>,
+    pending: crate::Room<(u32, u32)>,
     fan: Vec<(u32, u32)>,
     /// Scratch of the transection (parts, caps), with marks on this step's path.
     pub transector: Transector,
@@ -328,9 +328,9 @@ pub struct Cutter {
     /// Nodes a walk along a boundary loop met, marked with the walk's stamp.
     loop_stamp: Vec<u32>,
     /// Scratch: the nodes of the path, each once.
-    path_nodes: Vec<u32>,
+    path_nodes: crate::Room<u32>,
     /// Scratch: the nodes whose stiffness and damping diagonals a step may have changed.
-    touched: Vec<u32>,
+    touched: crate::Room<u32>,
     /// The body's node count when the step began.
     nodes_at_start: usize,
     /// The body is known to be one part (its springs join every node): a parts search found one,
@@ -340,7 +340,7 @@ pub struct Cutter {
     /// than spares left): the parts search is not made again.
     pub separation_refused: bool,
     /// Scratch of the search that joins a copy to its origin.
-    queue: Vec<u32>,
+    queue: crate::Room<u32>,
     /// Mass moves that give the changed nodes the least mass their explicit scheme carries.
     pub mass_mover: MassMover,
 }
@@ -420,9 +420,9 @@ impl Cutter {
             crossings: Vec::with_capacity(MAX_CROSSINGS),
             split_rest: Vec::with_capacity(MAX_CROSSINGS),
             affected: Vec::with_capacity(4 * MAX_CROSSINGS),
-            path_edges: Vec::with_capacity(8 * MAX_CROSSINGS),
+            path_edges: crate::Room::with_capacity(8 * MAX_CROSSINGS),
             new_path_from: 0,
-            pending: Vec::with_capacity(4 * MAX_CROSSINGS),
+            pending: crate::Room::with_capacity(4 * MAX_CROSSINGS),
             fan: Vec::with_capacity(FAN_ROOM),
             copies: Vec::with_capacity(4 * MAX_CROSSINGS),
             created: Vec::with_capacity(MAX_CREATED),
@@ -444,12 +444,12 @@ impl Cutter {
             }),
             side_stamp: vec![0; capacity],
             loop_stamp: vec![0; capacity],
-            path_nodes: Vec::with_capacity(16 * MAX_CROSSINGS),
-            touched: Vec::with_capacity(3 * MAX_CREATED + 16 * MAX_CROSSINGS),
+            path_nodes: crate::Room::with_capacity(16 * MAX_CROSSINGS),
+            touched: crate::Room::with_capacity(3 * MAX_CREATED + 16 * MAX_CROSSINGS),
             nodes_at_start: 0,
             connected: false,
             separation_refused: false,
-            queue: Vec::with_capacity(REJOIN_BUDGET + 1),
+            queue: crate::Room::with_capacity(REJOIN_BUDGET + 1),
             mass_mover: MassMover::with_capacity(capacity),
         };
         // Whether the body is one part, known from the start (a pass at setup): its first opening

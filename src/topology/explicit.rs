@@ -74,7 +74,7 @@ pub struct MassMover {
     round: u32,
     /// Scratch of [`MassMover::find_light`]: each node's Gershgorin sums (stiffness, damping with
     /// the air's) and the nodes below their least mass.
-    stiffness: Vec<f64>,
+    stiffness: crate::Room<f64>,
     damping: Vec<f64>,
     light: Vec<u32>,
     /// What the moves did.
@@ -111,7 +111,7 @@ impl MassMover {
             donors: Vec::with_capacity(MAX_DONORS),
             stamp: vec![0; capacity],
             round: 0,
-            stiffness: Vec::with_capacity(capacity),
+            stiffness: crate::Room::with_capacity(capacity),
             damping: Vec::with_capacity(capacity),
             light: Vec::with_capacity(capacity),
             counters: MassMoveCounters::default(),

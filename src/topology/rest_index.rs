@@ -32,7 +32,7 @@ struct CellGrid {
     start: Vec<u32>,
     items: Vec<u32>,
     /// Listings added since: a chain per cell through `extra` (item, next).
-    head: Vec<u32>,
+    head: crate::Room<u32>,
     extra: Vec<(u32, u32)>,
     /// Room for listings (built and added): a grid that would need more is out of date.
     room: usize,
@@ -48,7 +48,7 @@ impl CellGrid {
             dims: [1; 3],
             start: Vec::with_capacity(cells + 1),
             items: Vec::with_capacity(room),
-            head: Vec::with_capacity(cells),
+            head: crate::Room::with_capacity(cells),
             extra: Vec::with_capacity(room),
             room,
         }
@@ -199,7 +199,7 @@ pub struct RestIndex {
     triangle_stamp: Vec<u32>,
     edge_stamp: Vec<u32>,
     /// What the last query found, in index order.
-    pub found: Vec<u32>,
+    pub found: crate::Room<u32>,
 }
 
 fn rest_box(h: &[Vec3], corners: &[u32]) -> Aabb {
@@ -223,7 +223,7 @@ impl RestIndex {
             stamp: 0,
             triangle_stamp: vec![0; triangles],
             edge_stamp: vec![0; edges],
-            found: Vec::with_capacity(triangles.max(edges)),
+            found: crate::Room::with_capacity(triangles.max(edges)),
         }
     }
 

@@ -46,11 +46,11 @@ pub struct Tearer {
     /// Counters since the start.
     pub counters: TearCounters,
     /// Ticks each spring has been past the threshold ([`LIP`] for a lip).
-    over: Vec<u32>,
+    over: crate::Room<u32>,
     /// The springs to break this tick: (strain, spring), largest strain first.
     picked: Vec<(f64, u32)>,
     /// The edges one break opens.
-    path: Vec<(u32, u32)>,
+    path: crate::Room<(u32, u32)>,
     /// The cutter's transection count when `over` was last valid.
     transections_seen: u64,
 }
@@ -65,9 +65,9 @@ impl Tearer {
         Self {
             settings,
             counters: TearCounters::default(),
-            over: Vec::with_capacity(edges),
+            over: crate::Room::with_capacity(edges),
             picked: Vec::with_capacity(settings.max_per_tick),
-            path: Vec::with_capacity(3),
+            path: crate::Room::with_capacity(3),
             transections_seen: 0,
         }
     }

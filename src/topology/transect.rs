@@ -65,19 +65,19 @@ pub struct Transection {
 /// Fixed scratch of the transection of one body.
 #[derive(Clone, Debug)]
 pub struct Transector {
-    parent: Vec<u32>,
+    parent: crate::Room<u32>,
     /// Part of every node.
-    pub part: Vec<u32>,
+    pub part: crate::Room<u32>,
     new_index: Vec<u32>,
-    marked_list: Vec<u32>,
-    half_edges: Vec<(u64, u32, u32)>,
+    marked_list: crate::Room<u32>,
+    half_edges: crate::Room<(u64, u32, u32)>,
     next: Vec<u32>,
     visited: Vec<bool>,
     loop_nodes: Vec<u32>,
     arc: Vec<f64>,
     ring: Vec<u32>,
     ring_next: Vec<u32>,
-    cap_area: Vec<f64>,
+    cap_area: crate::Room<f64>,
     /// Where each cap node sits among its loop's nodes (same index as `cap_area`).
     cap_source: Vec<CapSource>,
     /// Mass each node of the loop being capped gives to its cap (kg, by position in the loop).
@@ -156,18 +156,18 @@ impl Transector {
     /// Scratch for a body of at most `nodes` nodes and `triangles` triangles.
     pub fn with_capacity(nodes: usize, triangles: usize) -> Self {
         Self {
-            parent: Vec::with_capacity(nodes),
-            part: Vec::with_capacity(nodes),
+            parent: crate::Room::with_capacity(nodes),
+            part: crate::Room::with_capacity(nodes),
             new_index: Vec::with_capacity(nodes),
-            marked_list: Vec::with_capacity(nodes),
-            half_edges: Vec::with_capacity(3 * triangles),
+            marked_list: crate::Room::with_capacity(nodes),
+            half_edges: crate::Room::with_capacity(3 * triangles),
             next: Vec::with_capacity(nodes),
             visited: Vec::with_capacity(nodes),
             loop_nodes: Vec::with_capacity(nodes),
             arc: Vec::with_capacity(nodes + 1),
             ring: Vec::with_capacity(nodes),
             ring_next: Vec::with_capacity(nodes),
-            cap_area: Vec::with_capacity(nodes),
+            cap_area: crate::Room::with_capacity(nodes),
             cap_source: Vec::with_capacity(nodes),
             loop_demand: Vec::with_capacity(nodes),
             part_density: [0.0; MAX_PARTS],
