@@ -1056,6 +1056,7 @@ const CANDIDATE_CAPACITY: usize = 1 << 16;
 /// pairs listed every tick while it moves so fast, as a query every tick would, where a larger reach
 /// would only cost more), and every [`RETRY_EVERY`]-th tick of such a run tries the slack again.
 const FAST_STREAK: u32 = 3;
+/// Ticks between tries of the slack for a body that keeps leaving it (see [`FAST_STREAK`]).
 const RETRY_EVERY: u32 = 32;
 /// Margin of a body's triangles' boxes in the hierarchy fitted to its reference, and of its
 /// vertices' and edges' boxes beyond the skin in its queries, per metre of its slack: two boxes
