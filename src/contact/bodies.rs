@@ -1110,8 +1110,8 @@ struct CandidateCache {
     streak: Vec<u32>,
     /// Per ordered pair of bodies (i × `slots` + j): whether its candidates are listed
     /// ([`LISTED`]; [`LISTED_FOR_NOW`] or, when a list was full, [`LISTED_IN_PART`]: used this
-    /// tick, listed again the next), and their ranges (vertices of i, then edges of i when j > i) in the list in use, and
-    /// when i < j the range of its triangle pairs (the collision net's) in theirs.
+    /// tick, listed again the next), their ranges (vertices of i, then edges of i when j > i) in
+    /// the list in use, and when i < j the range of its triangle pairs (the net's) in theirs.
     listed: Vec<u8>,
     ranges: Vec<[(u32, u32); 2]>,
     pair_ranges: Vec<(u32, u32)>,
