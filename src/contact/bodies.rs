@@ -1208,17 +1208,6 @@ impl CandidateCache {
         self.reference[k] = Some((body.topology_version, n));
     }
 
-    /// Body `k`'s boxes: its reference, or this tick's trajectories when it has none.
-    fn boxes<'a>(&'a self, k: usize, body: &'a Body) -> (&'a [Vec3], &'a [Vec3]) {
-        match self.reference[k] {
-            Some(_) => (&self.lower[k], &self.upper[k]),
-            None => (
-                &body.surface.position_in_world,
-                &body.surface.next_position_in_world,
-            ),
-        }
-    }
-
     /// Brings the lists up to date for the pairs of bodies near each other (`bounds` meet):
     /// bodies whose nodes left their slack take a new reference, and the pairs of such bodies, the
     /// pairs listed in part, and the near pairs not listed yet, are listed from the hierarchies
@@ -1283,7 +1272,8 @@ impl CandidateCache {
                 bvh.rebuild(&s.triangles, &s.position_in_world);
                 bvh.set_built_version(body.topology_version);
             }
-            let (lower, upper) = self.boxes(k, body);
+            let (lower, upper) =
+                reference_boxes(self.reference[k], &self.lower[k], &self.upper[k], body);
             bvh.refit(
                 &s.triangles,
                 lower,
@@ -1328,13 +1318,8 @@ impl CandidateCache {
                 if !pairs_of(i, j) {
                     continue;
                 }
-                let (lower_i, upper_i) = match self.reference[i] {
-                    Some(_) => (&self.lower[i][..], &self.upper[i][..]),
-                    None => (
-                        &body.surface.position_in_world[..],
-                        &body.surface.next_position_in_world[..],
-                    ),
-                };
+                let (lower_i, upper_i) =
+                    reference_boxes(self.reference[i], &self.lower[i], &self.upper[i], body);
                 let mut complete = list_pair(
                     (i, j, body),
                     (lower_i, upper_i),
@@ -1511,6 +1496,23 @@ impl Clone for TriangleBoxes {
             stamps: clone_nested(&self.stamps),
             stamp: self.stamp,
         }
+    }
+}
+
+/// A body's boxes: the corners of its reference (`lower`, `upper`) when it has one, otherwise this
+/// tick's trajectories.
+fn reference_boxes<'a>(
+    reference: Option<(u64, usize)>,
+    lower: &'a [Vec3],
+    upper: &'a [Vec3],
+    body: &'a Body,
+) -> (&'a [Vec3], &'a [Vec3]) {
+    match reference {
+        Some(_) => (lower, upper),
+        None => (
+            &body.surface.position_in_world,
+            &body.surface.next_position_in_world,
+        ),
     }
 }
 
