@@ -141,19 +141,23 @@ struct ContactNodes {
     refs: [NodeRef; 5],
     weights: [f64; 5],
     inverse_masses: [f64; 5],
+    /// Each weight over the tick (1/s), as the force of an impulse on the node's body takes it.
+    weights_per_second: [f64; 5],
 }
 
 impl ContactNodes {
-    fn of(bodies: &[Body], c: &Contact) -> Self {
+    fn of(bodies: &[Body], c: &Contact, dt: f64) -> Self {
         let mut nodes = ContactNodes {
             count: 0,
             refs: [NodeRef { body: 0, node: 0 }; 5],
             weights: [0.0; 5],
             inverse_masses: [0.0; 5],
+            weights_per_second: [0.0; 5],
         };
         for (r, w) in c.nodes() {
             nodes.refs[nodes.count] = r;
             nodes.weights[nodes.count] = w;
+            nodes.weights_per_second[nodes.count] = w / dt;
             nodes.inverse_masses[nodes.count] = inverse_mass_of(bodies, r);
             nodes.count += 1;
         }
@@ -180,10 +184,15 @@ pub struct BodyContactScratch {
     contacts: Vec<Contact>,
     /// The nodes of each contact of `contacts` (after the one-per-vertex selection).
     contact_nodes: Vec<ContactNodes>,
+    /// The contacts' keys and places, sorted (see [`packed_key`]).
+    order: Vec<((u64, u64), u32)>,
     found: Vec<u32>,
     /// A body's triangles whose boxes meet another body's bounds (room for the most triangles a
     /// body may have).
     near_triangles: Vec<u32>,
+    /// A vertex's candidate faces with its distance to each (room for the most triangles a body
+    /// may have).
+    faces_near: Vec<(f64, u32)>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Vec<Aabb>,
@@ -244,8 +253,17 @@ impl BodyContactScratch {
             pairs: Vec::with_capacity(PAIR_CAPACITY),
             contacts: Vec::with_capacity(CONTACT_CAPACITY),
             contact_nodes: Vec::with_capacity(CONTACT_CAPACITY),
+            order: Vec::with_capacity(CONTACT_CAPACITY),
             found: Vec::with_capacity(FOUND_CAPACITY),
             near_triangles: Vec::with_capacity(
+                bodies
+                    .iter()
+                    .map(|b| b.mesh_capacity().1)
+                    .chain(std::iter::once(spare_triangles))
+                    .max()
+                    .unwrap_or(0),
+            ),
+            faces_near: Vec::with_capacity(
                 bodies
                     .iter()
                     .map(|b| b.mesh_capacity().1)
@@ -638,9 +656,16 @@ fn barycentric(q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
     Some([1.0 - v - w, v, w])
 }
 
-/// The contact of vertex `v` with face `face` (of another body), if the vertex ends the tick within
-/// the skin of the face, or crossed its plane over the tick inside it.
-fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<Contact> {
+/// Where vertex `v` stands against face `face` (of another body) at the end of the tick, when it
+/// may be in contact with it: the face's corners, its unit normal, the vertex, its nearest point
+/// on the face and their distance. `None` when the vertex ends farther than the skin in front of
+/// the face's plane (or the face has no normal): no contact then.
+#[inline(always)]
+fn vertex_face_nearest(
+    bodies: &[Body],
+    v: NodeRef,
+    face: [NodeRef; 3],
+) -> Option<([Vec3; 3], Vec3, Vec3, Vec3, f64)> {
     let end = face.map(|r| end_of(bodies, r));
     let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
     let pe = end_of(bodies, v);
@@ -663,9 +688,34 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     if (pe - end[0]).dot(&face_normal) > reach {
         return None;
     }
-    let start = face.map(|r| start_of(bodies, r));
     let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
     let distance = (pe - q).norm();
+    Some((end, face_normal, pe, q, distance))
+}
+
+/// The distance [`vertex_face_nearest`] gives, or `None` where its first test turns the pair down
+/// (farther than the skin in front of the face's plane, compared in squares); pairs it keeps that
+/// the whole test turns down are left to that test.
+#[inline(always)]
+fn vertex_face_distance(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<f64> {
+    let end = face.map(|r| end_of(bodies, r));
+    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
+    let pe = end_of(bodies, v);
+    let ahead = (pe - end[0]).dot(&normal);
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
+        return None;
+    }
+    let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
+    Some((pe - q).norm())
+}
+
+/// The contact of vertex `v` with face `face` (of another body), if the vertex ends the tick within
+/// the skin of the face, or crossed its plane over the tick inside it. Its distance is the one
+/// [`vertex_face_nearest`] gives.
+fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<Contact> {
+    let (end, face_normal, pe, q, distance) = vertex_face_nearest(bodies, v, face)?;
+    let start = face.map(|r| start_of(bodies, r));
     let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
     let on_face = |w: &[f64; 3]| w.iter().all(|&x| x >= -1e-9);
     // Nearest a side or corner of the face (and outside it): the contact pushes along the line to
@@ -712,15 +762,7 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
 fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Option<Contact> {
     let (a0, a1) = (end_of(bodies, a[0]), end_of(bodies, a[1]));
     let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
-    // Boxes farther apart than the skin along an axis: the edges are too (the nearest points'
-    // distance is at least that gap).
-    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    let (low_a, high_a) = (a0.inf(&a1), a0.sup(&a1));
-    let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
-    let apart = (0..3).fold(false, |apart, k| {
-        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
-    });
-    if apart || !nearest_inside_a(&a0, &a1, &b0, &b1) {
+    if !edges_may_touch(&a0, &a1, &b0, &b1) {
         return None;
     }
     let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
@@ -771,6 +813,20 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
     })
 }
 
+/// False when edges (a0, a1) and (b0, b1) (ends of tick) are certainly not in contact as
+/// [`edge_edge_contact`] takes it: their boxes are farther apart than the skin along an axis (the
+/// nearest points' distance is at least that gap), or their nearest points are not inside edge a.
+#[inline(always)]
+fn edges_may_touch(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    let (low_a, high_a) = (a0.inf(a1), a0.sup(a1));
+    let (low_b, high_b) = (b0.inf(b1), b0.sup(b1));
+    let apart = (0..3).fold(false, |apart, k| {
+        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
+    });
+    !apart & nearest_inside_a(a0, a1, b0, b1)
+}
+
 /// False when the nearest points of segments (a0, a1) and (b0, b1) that
 /// [`segment_segment_closest`] finds are certainly not inside segment a: the numerator of its first
 /// parameter on the lines, `b f − c e`, is not between 0 and its denominator (the parameter it
@@ -785,15 +841,15 @@ fn nearest_inside_a(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
     let a = d1.norm_squared();
     let e = d2.norm_squared();
     let tiny = f64::MIN_POSITIVE;
-    if a <= tiny || e <= tiny {
-        return true;
-    }
     let (b, c, f) = (d1.dot(&d2), d1.dot(&r), d2.dot(&r));
     let denominator = a * e - b * b;
     let numerator = b * f - c * e;
-    // denominator ≤ 0: s = 0. Otherwise numerator / denominator rounds to ≤ 0 when the numerator
-    // is ≤ 0, and to ≥ 1 when it is ≥ the denominator (rounding is monotone).
-    denominator > 0.0 && numerator > 0.0 && numerator < denominator
+    // A degenerate segment: not decided here. denominator ≤ 0: s = 0. Otherwise numerator /
+    // denominator rounds to ≤ 0 when the numerator is ≤ 0, and to ≥ 1 when it is ≥ the
+    // denominator (rounding is monotone). With no branch: most pairs of a stack are decided here.
+    (a <= tiny)
+        | (e <= tiny)
+        | ((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator))
 }
 
 /// Inverse mass of a node for the contact response: 0 for a node a tool moves.
@@ -900,7 +956,11 @@ pub fn respond_to_body_contacts(
                     body: i,
                     node: v as usize,
                 };
-                let mut best: Option<Contact> = None;
+                // The faces the vertex may touch with its distance to each, then the whole test
+                // on them nearest first (ties by the face's nodes) until one gives a contact: the
+                // contact that testing them all and keeping the nearest would keep.
+                let faces = &mut scratch.faces_near;
+                faces.clear();
                 while k < vertices.1 as usize && entries[k].feature[0] == v {
                     let t = entries[k].triangle;
                     k += 1;
@@ -908,16 +968,36 @@ pub fn respond_to_body_contacts(
                         continue;
                     }
                     counters.candidate_pairs += 1;
-                    let face = sj.triangles[t as usize].map(|w| NodeRef {
-                        body: j,
-                        node: w as usize,
-                    });
-                    if let Some(c) = vertex_face_contact(bodies, vertex, face) {
-                        keep_nearer(&mut best, c);
+                    let face = face_of(sj, j, t as usize);
+                    if let Some(distance) = vertex_face_distance(bodies, vertex, face) {
+                        // Room for every triangle of the body (see `new`).
+                        if faces.len() < faces.capacity() {
+                            faces.push((distance, t));
+                        } else {
+                            counters.overflows += 1;
+                        }
                     }
                 }
-                if let Some(c) = best {
-                    push(&mut scratch.contacts, &mut counters, c);
+                while !faces.is_empty() {
+                    let mut nearest = 0;
+                    for m in 1..faces.len() {
+                        let (d, t) = faces[m];
+                        let (dn, tn) = faces[nearest];
+                        if d.total_cmp(&dn)
+                            .then_with(|| {
+                                face_of(sj, j, t as usize).cmp(&face_of(sj, j, tn as usize))
+                            })
+                            .is_lt()
+                        {
+                            nearest = m;
+                        }
+                    }
+                    let (_, t) = faces.swap_remove(nearest);
+                    if let Some(c) = vertex_face_contact(bodies, vertex, face_of(sj, j, t as usize))
+                    {
+                        push(&mut scratch.contacts, &mut counters, c);
+                        break;
+                    }
                 }
             }
             let mut k = edges.0 as usize;
@@ -965,21 +1045,32 @@ pub fn respond_to_body_contacts(
         }
     }
     // One contact per vertex (or edge) and other body, the nearest (kept above), in a fixed order.
+    // Sorted through a list of keys and places rather than moving the contacts at each step.
     let key = |c: &Contact| (c.kind, c.a, c.b[0].body);
-    scratch.contacts.sort_unstable_by(|x, y| {
-        key(x)
-            .cmp(&key(y))
-            .then(x.distance.total_cmp(&y.distance))
-            .then(x.b.cmp(&y.b))
+    let contacts = &mut scratch.contacts;
+    let order = &mut scratch.order;
+    order.clear();
+    order.extend(
+        contacts
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (packed_key(c), k as u32)),
+    );
+    order.sort_unstable_by(|(x_key, x), (y_key, y)| {
+        x_key.cmp(y_key).then_with(|| {
+            let (x, y) = (&contacts[*x as usize], &contacts[*y as usize]);
+            x.distance
+                .total_cmp(&y.distance)
+                .then_with(|| x.b.cmp(&y.b))
+        })
     });
-    scratch
-        .contacts
-        .dedup_by(|later, first| key(later) == key(first));
+    permute(contacts, order);
+    contacts.dedup_by(|later, first| key(later) == key(first));
     scratch.contact_nodes.clear();
     for c in scratch.contacts.iter_mut() {
         let (a, b) = (c.a[0].body, c.b[0].body);
         c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
-        let nodes = ContactNodes::of(bodies, c);
+        let nodes = ContactNodes::of(bodies, c, dt);
         c.compliance = (0..nodes.count)
             .map(|i| nodes.weights[i] * nodes.weights[i] * nodes.inverse_masses[i])
             .sum::<f64>();
@@ -1445,8 +1536,10 @@ impl Clone for BodyContactScratch {
             pairs: clone_with_room(&self.pairs),
             contacts: clone_with_room(&self.contacts),
             contact_nodes: clone_with_room(&self.contact_nodes),
+            order: clone_with_room(&self.order),
             found: clone_with_room(&self.found),
             near_triangles: clone_with_room(&self.near_triangles),
+            faces_near: clone_with_room(&self.faces_near),
             settings: self.settings,
             bounds: clone_with_room(&self.bounds),
             near: clone_with_room(&self.near),
@@ -1706,7 +1799,7 @@ fn apply_impulse(
 ) {
     for i in 0..nodes.count {
         let (r, w, inverse_mass) = (nodes.refs[i], nodes.weights[i], nodes.inverse_masses[i]);
-        forces[r.body] += impulse * (w / dt);
+        forces[r.body] += impulse * nodes.weights_per_second[i];
         work[r.body] += (impulse * w)
             .dot(&bodies[r.body].surface.velocity_in_world[r.node])
             .abs();
@@ -1732,6 +1825,48 @@ fn keep_nearer(best: &mut Option<Contact>, c: Contact) {
     if nearer {
         *best = Some(c);
     }
+}
+
+/// A contact's place in the response's order as two words: the order of `(kind, a, b[0].body)`
+/// (side a's two nodes are of one body, and node indices are 32-bit).
+#[inline]
+fn packed_key(c: &Contact) -> (u64, u64) {
+    debug_assert_eq!(c.a[0].body, c.a[1].body);
+    (
+        ((c.kind as u64) << 63) | ((c.a[0].body as u64) << 32) | c.a[0].node as u64,
+        ((c.a[1].node as u64) << 32) | c.b[0].body as u64,
+    )
+}
+
+/// Puts `items` in the order `order` lists (the second of each entry is an item's place before),
+/// moving each item once; `order` is left with every entry pointing at its own place.
+fn permute<T: Copy, K>(items: &mut [T], order: &mut [(K, u32)]) {
+    for start in 0..order.len() {
+        if order[start].1 as usize == start {
+            continue;
+        }
+        let first = items[start];
+        let mut k = start;
+        loop {
+            let from = order[k].1 as usize;
+            order[k].1 = k as u32;
+            if from == start {
+                items[k] = first;
+                break;
+            }
+            items[k] = items[from];
+            k = from;
+        }
+    }
+}
+
+/// Triangle `t` of body `j` (surface `s`) as node references.
+#[inline]
+fn face_of(s: &crate::body::Surface, j: usize, t: usize) -> [NodeRef; 3] {
+    s.triangles[t].map(|w| NodeRef {
+        body: j,
+        node: w as usize,
+    })
 }
 
 /// The pair with its smaller node first.
