@@ -852,6 +852,109 @@ fn nearest_inside_a(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
         | ((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator))
 }
 
+/// A body's nodes four at a time: their points as three vectors of four coordinates each, lane `l`
+/// of vector `v` holding coordinate `(4 v + l) mod 3`.
+#[cfg(target_arch = "x86_64")]
+mod wide {
+    use crate::Vec3;
+    use std::arch::x86_64::*;
+
+    /// The coordinate of lane `l` of vector `v` of a block.
+    const AXIS: [[usize; 4]; 3] = [[0, 1, 2, 0], [1, 2, 0, 1], [2, 0, 1, 2]];
+
+    /// The least and greatest coordinates of the points of `start` and `end` per axis, and the
+    /// largest displacement along each, as the scalar code finds them (minimum and maximum are
+    /// exact, in any order); `None` where a coordinate is not a number (the vector minimum does
+    /// not skip it as `f64::min` does). Each slice holds a multiple of four points.
+    ///
+    /// # Safety
+    /// The machine must have AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn sweep(
+        start: &[Vec3],
+        end: &[Vec3],
+    ) -> Option<([f64; 3], [f64; 3], [f64; 3])> {
+        let n = start.len().min(end.len()) / 4 * 4;
+        let (p, q) = (start.as_ptr() as *const f64, end.as_ptr() as *const f64);
+        let magnitude = _mm256_set1_pd(-0.0);
+        let mut low = [_mm256_set1_pd(f64::INFINITY); 3];
+        let mut high = [_mm256_set1_pd(f64::NEG_INFINITY); 3];
+        let mut most = [_mm256_setzero_pd(); 3];
+        let mut unordered = _mm256_setzero_pd();
+        for block in 0..n / 4 {
+            for v in 0..3 {
+                // SAFETY: a Vec3 is three f64 in a row (nalgebra's column storage), so the n points
+                // are 3 n f64; this reads 4 of them at 12 block + 4 v < 3 n.
+                let (a, b) = unsafe {
+                    (
+                        _mm256_loadu_pd(p.add(12 * block + 4 * v)),
+                        _mm256_loadu_pd(q.add(12 * block + 4 * v)),
+                    )
+                };
+                unordered = _mm256_or_pd(unordered, _mm256_cmp_pd::<_CMP_UNORD_Q>(a, b));
+                low[v] = _mm256_min_pd(low[v], _mm256_min_pd(a, b));
+                high[v] = _mm256_max_pd(high[v], _mm256_max_pd(a, b));
+                most[v] = _mm256_max_pd(most[v], _mm256_andnot_pd(magnitude, _mm256_sub_pd(b, a)));
+            }
+        }
+        if _mm256_movemask_pd(unordered) != 0 {
+            return None;
+        }
+        let lanes = |x: __m256d| {
+            let mut out = [0.0; 4];
+            // SAFETY: four f64 into an array of four.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), x) };
+            out
+        };
+        let (mut lower, mut upper, mut largest) =
+            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], [0.0f64; 3]);
+        for v in 0..3 {
+            let (l, h, m) = (lanes(low[v]), lanes(high[v]), lanes(most[v]));
+            for lane in 0..4 {
+                let axis = AXIS[v][lane];
+                lower[axis] = lower[axis].min(l[lane]);
+                upper[axis] = upper[axis].max(h[lane]);
+                largest[axis] = largest[axis].max(m[lane]);
+            }
+        }
+        Some((lower, upper, largest))
+    }
+
+    /// Whether every point of `start` and `end` lies within `slack` of the box from `lower` to
+    /// `upper` of the same node: the comparisons of the scalar code (a coordinate that is not a
+    /// number is outside). Each slice holds the same multiple of four points.
+    ///
+    /// # Safety
+    /// The machine must have AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn within(
+        [start, end]: [&[Vec3]; 2],
+        [lower, upper]: [&[Vec3]; 2],
+        slack: f64,
+    ) -> bool {
+        let n = start.len().min(end.len()).min(lower.len()).min(upper.len()) / 4 * 4;
+        let pointers = [start, end, lower, upper].map(|x| x.as_ptr() as *const f64);
+        let slack = _mm256_set1_pd(slack);
+        let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        for block in 0..n / 4 {
+            for v in 0..3 {
+                // SAFETY: as in `sweep`, 4 f64 at 12 block + 4 v < 3 n of each slice.
+                let [p, q, lo, hi] =
+                    pointers.map(|x| unsafe { _mm256_loadu_pd(x.add(12 * block + 4 * v)) });
+                let (lo, hi) = (_mm256_sub_pd(lo, slack), _mm256_add_pd(hi, slack));
+                let ge = |x, y| _mm256_cmp_pd::<_CMP_GE_OQ>(x, y);
+                let le = |x, y| _mm256_cmp_pd::<_CMP_LE_OQ>(x, y);
+                let both = _mm256_and_pd(
+                    _mm256_and_pd(ge(p, lo), le(p, hi)),
+                    _mm256_and_pd(ge(q, lo), le(q, hi)),
+                );
+                inside = _mm256_and_pd(inside, both);
+            }
+        }
+        _mm256_movemask_pd(inside) == 0b1111
+    }
+}
+
 /// Inverse mass of a node for the contact response: 0 for a node a tool moves.
 fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
     let s = &bodies[r.body].surface;
@@ -1257,22 +1360,12 @@ impl CandidateCache {
         if self.reference[k] != Some((body.topology_version, n)) {
             return false;
         }
-        let slack = Vec3::repeat(self.slack[k]);
-        let mut inside = true;
-        for (((p, q), lo), hi) in s
-            .position_in_world
-            .iter()
-            .zip(&s.next_position_in_world)
-            .zip(&self.lower[k])
-            .zip(&self.upper[k])
-        {
-            let (lo, hi) = (lo - slack, hi + slack);
-            // Plain comparisons, no early exit (NaN: outside).
-            for d in 0..3 {
-                inside &= (p[d] >= lo[d]) & (p[d] <= hi[d]) & (q[d] >= lo[d]) & (q[d] <= hi[d]);
-            }
-        }
-        inside
+        within_slack(
+            [&s.position_in_world, &s.next_position_in_world],
+            [&self.lower[k], &self.upper[k]],
+            self.slack[k],
+            crate::dynamics::kernel::simd_available(),
+        )
     }
 
     /// Body `k`'s trajectories this tick as its reference (none when there is no room for them).
@@ -1700,17 +1793,13 @@ fn bodies_near(
     near.clear();
     max_motion.clear();
     for b in bodies {
-        let s = &b.surface;
-        let mut aabb = Aabb::empty();
-        let mut largest: f64 = 0.0;
-        for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
-            aabb.min = aabb.min.inf(&p.inf(q));
-            aabb.max = aabb.max.sup(&p.sup(q));
-            largest = largest.max((q - p).norm_squared());
-        }
+        let (aabb, largest) = sweep(
+            &b.surface.position_in_world,
+            &b.surface.next_position_in_world,
+        );
         bounds.push(aabb);
         near.push(false);
-        max_motion.push(largest.sqrt());
+        max_motion.push(largest);
     }
     mark_near(group, bounds, near)
 }
@@ -1735,6 +1824,84 @@ fn mark_near(group: &[usize], bounds: &[Aabb], near: &mut [bool]) -> bool {
 }
 
 /// The box of `nodes` of `body` over the tick (start and end positions).
+/// Whether every point of `start` and `end` lies within `slack` of its node's box from `lower` to
+/// `upper` (plain comparisons, no early exit; a coordinate that is not a number is outside): four
+/// nodes at a time with AVX when `simd` (the machine must have it), the rest one at a time.
+fn within_slack(
+    [start, end]: [&[Vec3]; 2],
+    [lower, upper]: [&[Vec3]; 2],
+    slack: f64,
+    simd: bool,
+) -> bool {
+    let n = start.len();
+    if end.len() != n || lower.len() != n || upper.len() != n {
+        return false;
+    }
+    let mut done = 0;
+    let mut inside = true;
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        done = n - n % 4;
+        // SAFETY: the machine has AVX; the four slices hold n ≥ done points each.
+        inside = unsafe {
+            wide::within(
+                [&start[..done], &end[..done]],
+                [&lower[..done], &upper[..done]],
+                slack,
+            )
+        };
+    }
+    let slack = Vec3::repeat(slack);
+    for (((p, q), lo), hi) in start[done..]
+        .iter()
+        .zip(&end[done..])
+        .zip(&lower[done..])
+        .zip(&upper[done..])
+    {
+        let (lo, hi) = (lo - slack, hi + slack);
+        // Plain comparisons, no early exit (NaN: outside).
+        for d in 0..3 {
+            inside &= (p[d] >= lo[d]) & (p[d] <= hi[d]) & (q[d] >= lo[d]) & (q[d] <= hi[d]);
+        }
+    }
+    inside
+}
+
+/// The box of the points of `start` and `end` (a body's nodes over the tick) and a bound above
+/// every node's displacement (m): the length of the vector of the largest displacement along each
+/// axis — at least each node's own length, computed the same way, and only the collision net's
+/// first filter reads it (a looser bound lets more pairs on to its exact second filter).
+fn sweep(start: &[Vec3], end: &[Vec3]) -> (Aabb, f64) {
+    sweep_on(start, end, crate::dynamics::kernel::simd_available())
+}
+
+/// [`sweep`], four nodes at a time with AVX when `simd` (the machine must have it), else one at a
+/// time: the same answer.
+fn sweep_on(start: &[Vec3], end: &[Vec3], simd: bool) -> (Aabb, f64) {
+    let n = start.len().min(end.len());
+    let mut aabb = Aabb::empty();
+    let mut largest = Vec3::zeros();
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        // SAFETY: the machine has AVX; both slices hold n ≥ the points given.
+        if let Some((lower, upper, most)) =
+            unsafe { wide::sweep(&start[..n - n % 4], &end[..n - n % 4]) }
+        {
+            done = n - n % 4;
+            aabb.min = Vec3::from(lower);
+            aabb.max = Vec3::from(upper);
+            largest = Vec3::from(most);
+        }
+    }
+    for (p, q) in start[done..n].iter().zip(&end[done..n]) {
+        aabb.min = aabb.min.inf(&p.inf(q));
+        aabb.max = aabb.max.sup(&p.sup(q));
+        largest = largest.sup(&(q - p).abs());
+    }
+    (aabb, largest.norm())
+}
+
 fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
     let s = &body.surface;
     let mut aabb = Aabb::empty();
@@ -1879,5 +2046,70 @@ fn move_end(bodies: &mut [Body], r: NodeRef, shift: Vec3) {
     let inverse_mass = inverse_mass_of(bodies, r);
     if inverse_mass != 0.0 {
         bodies[r.body].surface.next_position_in_world[r.node] += shift * inverse_mass;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points spread over a few centimetres from a seed (a linear congruential sequence).
+    fn points(seed: u64, n: usize) -> Vec<Vec3> {
+        let mut state = seed;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 0.04 - 0.02
+        };
+        (0..n).map(|_| Vec3::new(next(), next(), next())).collect()
+    }
+
+    #[test]
+    fn the_sweep_and_the_slack_check_answer_four_nodes_at_a_time_as_one_at_a_time() {
+        if !crate::dynamics::kernel::simd_available() {
+            eprintln!("no AVX on this machine: only the scalar path runs");
+            return;
+        }
+        let mut checked = [0usize; 2];
+        for n in [0, 1, 3, 4, 5, 8, 13, 64, 161] {
+            for seed in 0..8u64 {
+                let start = points(seed, n);
+                let mut end: Vec<Vec3> = start
+                    .iter()
+                    .zip(points(seed + 100, n))
+                    .map(|(p, d)| p + d * 0.05)
+                    .collect();
+                if seed == 7 && n > 0 {
+                    end[n / 2].y = f64::NAN;
+                }
+                let (wide, scalar) = (sweep_on(&start, &end, true), sweep_on(&start, &end, false));
+                assert_eq!(wide.0.min.map(f64::to_bits), scalar.0.min.map(f64::to_bits));
+                assert_eq!(wide.0.max.map(f64::to_bits), scalar.0.max.map(f64::to_bits));
+                assert_eq!(wide.1.to_bits(), scalar.1.to_bits());
+                // The bound is above every node's displacement (a node with a coordinate that is
+                // not a number has none).
+                for (p, q) in start.iter().zip(&end) {
+                    let motion = (q - p).norm();
+                    assert!(motion.is_nan() || motion <= wide.1, "{n} {seed}");
+                }
+                // Boxes around each node that hold it, or miss it by a little on one axis.
+                for slack in [0.0, 2.5e-4] {
+                    let lower: Vec<Vec3> = start.iter().zip(&end).map(|(p, q)| p.inf(q)).collect();
+                    let mut upper: Vec<Vec3> =
+                        start.iter().zip(&end).map(|(p, q)| p.sup(q)).collect();
+                    for (k, u) in upper.iter_mut().enumerate() {
+                        if (k as u64 + seed) % 37 == 5 {
+                            u[k % 3] -= slack + 1e-6;
+                        }
+                    }
+                    let ask = |simd| within_slack([&start, &end], [&lower, &upper], slack, simd);
+                    assert_eq!(ask(true), ask(false), "{n} {seed} {slack}");
+                    checked[ask(false) as usize] += 1;
+                }
+            }
+        }
+        // Both answers were met.
+        assert!(checked[0] > 10 && checked[1] > 10, "{checked:?}");
     }
 }
