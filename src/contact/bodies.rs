@@ -22,9 +22,9 @@
 //!    and separate over it are left alone, so bodies can part. Nodes held by a tool are moved by the
 //!    tool only.
 
+use crate::Room;
 use crate::Vec3;
 use crate::body::Body;
-use crate::clone_with_room;
 use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::tool::{
@@ -177,41 +177,41 @@ impl ContactNodes {
 }
 
 /// Scratch memory of the stage, sized when the world is assembled.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct BodyContactScratch {
     bvhs: Vec<TriangleBvh>,
-    pairs: Vec<(u32, u32)>,
-    contacts: Vec<Contact>,
+    pairs: Room<(u32, u32)>,
+    contacts: Room<Contact>,
     /// The nodes of each contact of `contacts` (after the one-per-vertex selection).
-    contact_nodes: Vec<ContactNodes>,
+    contact_nodes: Room<ContactNodes>,
     /// The contacts' keys and places, sorted (see [`packed_key`]).
-    order: Vec<((u64, u64), u32)>,
-    found: Vec<u32>,
+    order: Room<((u64, u64), u32)>,
+    found: Room<u32>,
     /// A body's triangles whose boxes meet another body's bounds (room for the most triangles a
     /// body may have).
-    near_triangles: Vec<u32>,
+    near_triangles: Room<u32>,
     /// A vertex's candidate faces with its distance to each (room for the most triangles a body
     /// may have).
-    faces_near: Vec<(f64, u32)>,
+    faces_near: Room<(f64, u32)>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
-    bounds: Vec<Aabb>,
-    near: Vec<bool>,
+    bounds: Room<Aabb>,
+    near: Room<bool>,
     /// What the response left for the collision net this tick (see [`Prepared`]).
     prepared: Prepared,
     /// Each body's swept bounds with no margin, from the response: grown by the ends of tick the
     /// response moved, they hold the net's bounds.
-    tight_bounds: Vec<Aabb>,
+    tight_bounds: Room<Aabb>,
     /// The triangles' boxes over this tick (or net round).
     now: TriangleBoxes,
     /// The response's and the net's candidate pairs, listed again only where bodies moved.
     cache: CandidateCache,
     /// Each body's largest node displacement over the tick (m), at least.
-    max_motion: Vec<f64>,
+    max_motion: Room<f64>,
     /// Per body and node, 1 + the last round of the collision net that answered a collision of
     /// the node this tick (0: none), with room for the body's most nodes (see
     /// [`worth_testing`]).
-    answered: Vec<Vec<u32>>,
+    answered: Vec<Room<u32>>,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -245,40 +245,33 @@ impl BodyContactScratch {
         // Room for each body's most nodes (at most 3 per triangle, as the hierarchy's own).
         let answered = bodies
             .iter()
-            .map(|b| Vec::with_capacity(b.mesh_capacity().0.max(b.node_count())))
-            .chain((0..spare).map(|_| Vec::with_capacity(3 * spare_triangles + 3)))
+            .map(|b| Room::with_capacity(b.mesh_capacity().0.max(b.node_count())))
+            .chain((0..spare).map(|_| Room::with_capacity(3 * spare_triangles + 3)))
             .collect();
+        // The most triangles a body may have, now or as a piece of a transection.
+        let most_triangles = bodies
+            .iter()
+            .map(|b| b.mesh_capacity().1)
+            .chain(std::iter::once(spare_triangles))
+            .max()
+            .unwrap_or(0);
         Self {
             bvhs,
-            pairs: Vec::with_capacity(PAIR_CAPACITY),
-            contacts: Vec::with_capacity(CONTACT_CAPACITY),
-            contact_nodes: Vec::with_capacity(CONTACT_CAPACITY),
-            order: Vec::with_capacity(CONTACT_CAPACITY),
-            found: Vec::with_capacity(FOUND_CAPACITY),
-            near_triangles: Vec::with_capacity(
-                bodies
-                    .iter()
-                    .map(|b| b.mesh_capacity().1)
-                    .chain(std::iter::once(spare_triangles))
-                    .max()
-                    .unwrap_or(0),
-            ),
-            faces_near: Vec::with_capacity(
-                bodies
-                    .iter()
-                    .map(|b| b.mesh_capacity().1)
-                    .chain(std::iter::once(spare_triangles))
-                    .max()
-                    .unwrap_or(0),
-            ),
+            pairs: Room::with_capacity(PAIR_CAPACITY),
+            contacts: Room::with_capacity(CONTACT_CAPACITY),
+            contact_nodes: Room::with_capacity(CONTACT_CAPACITY),
+            order: Room::with_capacity(CONTACT_CAPACITY),
+            found: Room::with_capacity(FOUND_CAPACITY),
+            near_triangles: Room::with_capacity(most_triangles),
+            faces_near: Room::with_capacity(most_triangles),
             settings: CcdSettings::default(),
-            bounds: Vec::with_capacity(count),
-            near: Vec::with_capacity(count),
+            bounds: Room::with_capacity(count),
+            near: Room::with_capacity(count),
             prepared: Prepared::Nothing,
-            tight_bounds: Vec::with_capacity(count),
+            tight_bounds: Room::with_capacity(count),
             now: TriangleBoxes::new(bodies, count, spare_triangles),
             cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
-            max_motion: Vec::with_capacity(count),
+            max_motion: Room::with_capacity(count),
             answered,
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
@@ -452,7 +445,7 @@ fn test_primitive(
 /// shrinks the boxes), and it did not collide on them: the test would answer no again, so skipping
 /// it changes nothing, to the bit.
 fn worth_testing(
-    answered: &[Vec<u32>],
+    answered: &[Room<u32>],
     nodes: &[NodeRef; 4],
     round: usize,
     skipping: bool,
@@ -466,7 +459,7 @@ fn worth_testing(
 
 /// Records that `round` answered a collision of `nodes` (when `hit`; whether or not it could move
 /// them: a tool holds some); returns 1 when it did.
-fn mark_answered(answered: &mut [Vec<u32>], nodes: &[NodeRef; 4], round: usize, hit: bool) -> u32 {
+fn mark_answered(answered: &mut [Room<u32>], nodes: &[NodeRef; 4], round: usize, hit: bool) -> u32 {
     if !hit {
         return 0;
     }
@@ -1287,13 +1280,13 @@ struct Candidate {
 /// those of queries of hierarchies refitted every tick; the net's triangle pairs keep the order of a
 /// traversal of the two hierarchies (which does not depend on the boxes: a traversal of boxes that
 /// meet less gives a subsequence).
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 struct CandidateCache {
     /// Per body, the lower and upper corners of each node's reference box (room for its most
     /// nodes), and the topology version and node count of the reference (`None`: none taken, or
     /// no room, when the body's trajectories serve as its boxes and are listed again every tick).
-    lower: Vec<Vec<Vec3>>,
-    upper: Vec<Vec<Vec3>>,
+    lower: Vec<Room<Vec3>>,
+    upper: Vec<Room<Vec3>>,
     reference: Vec<Option<(u64, usize)>>,
     /// Per body, the slack of its reference (m): [`CANDIDATE_SLACK`], or 0 for a body that left it
     /// on several ticks in a row.
@@ -1312,8 +1305,8 @@ struct CandidateCache {
     /// The lists in use (grouped by pair, then by feature) and the ones a new listing is written
     /// to: the response's candidates, and the net's triangle pairs (whose boxes may meet, in the
     /// order of the hierarchies' traversal).
-    entries: [Vec<Candidate>; 2],
-    pairs: [Vec<(u32, u32)>; 2],
+    entries: [Room<Candidate>; 2],
+    pairs: [Room<(u32, u32)>; 2],
     current: usize,
     /// The bodies the tables have room for.
     slots: usize,
@@ -1329,8 +1322,8 @@ impl CandidateCache {
                 .map_or(spare_nodes, |b| b.mesh_capacity().0.max(b.node_count()))
         };
         Self {
-            lower: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
-            upper: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            lower: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
+            upper: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             reference: vec![None; slots],
             slack: vec![0.0; slots],
             renewed: vec![false; slots],
@@ -1339,12 +1332,12 @@ impl CandidateCache {
             ranges: vec![[(0, 0); 2]; slots * slots],
             pair_ranges: vec![(0, 0); slots * slots],
             entries: [
-                Vec::with_capacity(CANDIDATE_CAPACITY),
-                Vec::with_capacity(CANDIDATE_CAPACITY),
+                Room::with_capacity(CANDIDATE_CAPACITY),
+                Room::with_capacity(CANDIDATE_CAPACITY),
             ],
             pairs: [
-                Vec::with_capacity(PAIR_CAPACITY),
-                Vec::with_capacity(PAIR_CAPACITY),
+                Room::with_capacity(PAIR_CAPACITY),
+                Room::with_capacity(PAIR_CAPACITY),
             ],
             current: 0,
             slots,
@@ -1543,11 +1536,11 @@ impl CandidateCache {
 /// Each body's triangles' boxes over this tick (or net round), taken when first asked for and kept
 /// until [`TriangleBoxes::begin`]: the boxes a refit with no margin gives (the minima and maxima of
 /// the corners' start and end positions), for the triangles the kept candidates name.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 struct TriangleBoxes {
-    boxes: Vec<Vec<Aabb>>,
+    boxes: Vec<Room<Aabb>>,
     /// Per body and triangle, the stamp its box was taken at (0: never).
-    stamps: Vec<Vec<u32>>,
+    stamps: Vec<Room<u32>>,
     stamp: u32,
 }
 
@@ -1559,8 +1552,8 @@ impl TriangleBoxes {
                 .map_or(spare_triangles, |b| b.mesh_capacity().1)
         };
         Self {
-            boxes: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
-            stamps: (0..slots).map(|k| Vec::with_capacity(room(k))).collect(),
+            boxes: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
+            stamps: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             stamp: 0,
         }
     }
@@ -1609,78 +1602,6 @@ impl TriangleBoxes {
                 aabb
             }
             None => compute(),
-        }
-    }
-}
-
-/// Lists of lists, each copied with its room.
-fn clone_nested<T: Clone>(v: &Vec<Vec<T>>) -> Vec<Vec<T>> {
-    let mut copy = Vec::with_capacity(v.capacity());
-    copy.extend(v.iter().map(clone_with_room));
-    copy
-}
-
-impl Clone for BodyContactScratch {
-    /// A copy with the same room reserved in every list (the stage takes a list's room as its
-    /// limit).
-    fn clone(&self) -> Self {
-        Self {
-            bvhs: clone_with_room(&self.bvhs),
-            pairs: clone_with_room(&self.pairs),
-            contacts: clone_with_room(&self.contacts),
-            contact_nodes: clone_with_room(&self.contact_nodes),
-            order: clone_with_room(&self.order),
-            found: clone_with_room(&self.found),
-            near_triangles: clone_with_room(&self.near_triangles),
-            faces_near: clone_with_room(&self.faces_near),
-            settings: self.settings,
-            bounds: clone_with_room(&self.bounds),
-            near: clone_with_room(&self.near),
-            prepared: self.prepared,
-            tight_bounds: clone_with_room(&self.tight_bounds),
-            now: self.now.clone(),
-            cache: self.cache.clone(),
-            max_motion: clone_with_room(&self.max_motion),
-            answered: clone_nested(&self.answered),
-            forces: clone_with_room(&self.forces),
-            work: clone_with_room(&self.work),
-        }
-    }
-}
-
-impl Clone for CandidateCache {
-    fn clone(&self) -> Self {
-        Self {
-            lower: clone_nested(&self.lower),
-            upper: clone_nested(&self.upper),
-            reference: clone_with_room(&self.reference),
-            slack: clone_with_room(&self.slack),
-            renewed: clone_with_room(&self.renewed),
-            streak: clone_with_room(&self.streak),
-            listed: clone_with_room(&self.listed),
-            ranges: clone_with_room(&self.ranges),
-            pair_ranges: clone_with_room(&self.pair_ranges),
-            entries: [
-                clone_with_room(&self.entries[0]),
-                clone_with_room(&self.entries[1]),
-            ],
-            pairs: [
-                clone_with_room(&self.pairs[0]),
-                clone_with_room(&self.pairs[1]),
-            ],
-            current: self.current,
-            slots: self.slots,
-            keep: self.keep,
-        }
-    }
-}
-
-impl Clone for TriangleBoxes {
-    fn clone(&self) -> Self {
-        Self {
-            boxes: clone_nested(&self.boxes),
-            stamps: clone_nested(&self.stamps),
-            stamp: self.stamp,
         }
     }
 }
@@ -1839,6 +1760,8 @@ fn within_slack(
     }
     let mut done = 0;
     let mut inside = true;
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
     #[cfg(target_arch = "x86_64")]
     if simd {
         done = n - n % 4;
@@ -1882,6 +1805,8 @@ fn sweep_on(start: &[Vec3], end: &[Vec3], simd: bool) -> (Aabb, f64) {
     let mut aabb = Aabb::empty();
     let mut largest = Vec3::zeros();
     let mut done = 0;
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
     #[cfg(target_arch = "x86_64")]
     if simd {
         // SAFETY: the machine has AVX; both slices hold n ≥ the points given.
