@@ -649,6 +649,30 @@ fn barycentric(q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
     Some([1.0 - v - w, v, w])
 }
 
+/// The face's corners at the end of the tick, its unnormalised normal and the vertex's end, unless
+/// the vertex ends farther than the skin in front of the face's plane: then neither near (the face
+/// is no nearer than its plane) nor crossed (it ends in front), whatever the closest point (the
+/// margin is far above the rounding of either measure). Compared in squares with the unnormalised
+/// normal, before its square root and division: a pair that this and the test on the unit normal
+/// would decide differently lies within rounding of the margin, beyond the skin, where the whole
+/// test turns it down as well.
+#[inline(always)]
+fn vertex_face_ahead(
+    bodies: &[Body],
+    v: NodeRef,
+    face: [NodeRef; 3],
+) -> Option<([Vec3; 3], Vec3, Vec3)> {
+    let end = face.map(|r| end_of(bodies, r));
+    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
+    let pe = end_of(bodies, v);
+    let ahead = (pe - end[0]).dot(&normal);
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
+        return None;
+    }
+    Some((end, normal, pe))
+}
+
 /// Where vertex `v` stands against face `face` (of another body) at the end of the tick, when it
 /// may be in contact with it: the face's corners, its unit normal, the vertex, its nearest point
 /// on the face and their distance. `None` when the vertex ends farther than the skin in front of
@@ -659,26 +683,13 @@ fn vertex_face_nearest(
     v: NodeRef,
     face: [NodeRef; 3],
 ) -> Option<([Vec3; 3], Vec3, Vec3, Vec3, f64)> {
-    let end = face.map(|r| end_of(bodies, r));
-    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
-    let pe = end_of(bodies, v);
-    // Farther than the skin in front of the face's plane: not near (the face is no nearer than its
-    // plane) and not crossed (it ends in front), whatever the closest point (the margin is far
-    // above the rounding of either measure). Compared in squares with the unnormalised normal,
-    // before its square root and division: a pair that this and the test on the unit normal would
-    // decide differently lies within rounding of the margin, beyond the skin, where the tests
-    // below turn it down as well.
-    let ahead = (pe - end[0]).dot(&normal);
-    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
-        return None;
-    }
+    let (end, normal, pe) = vertex_face_ahead(bodies, v, face)?;
     let length = normal.norm();
     if length <= f64::MIN_POSITIVE || !length.is_finite() {
         return None;
     }
     let face_normal = normal / length;
-    if (pe - end[0]).dot(&face_normal) > reach {
+    if (pe - end[0]).dot(&face_normal) > CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN) {
         return None;
     }
     let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
@@ -686,19 +697,12 @@ fn vertex_face_nearest(
     Some((end, face_normal, pe, q, distance))
 }
 
-/// The distance [`vertex_face_nearest`] gives, or `None` where its first test turns the pair down
-/// (farther than the skin in front of the face's plane, compared in squares); pairs it keeps that
-/// the whole test turns down are left to that test.
+/// The distance [`vertex_face_nearest`] gives, or `None` where its first test
+/// ([`vertex_face_ahead`]) turns the pair down; pairs it keeps that the whole test turns down are
+/// left to that test.
 #[inline(always)]
 fn vertex_face_distance(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<f64> {
-    let end = face.map(|r| end_of(bodies, r));
-    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
-    let pe = end_of(bodies, v);
-    let ahead = (pe - end[0]).dot(&normal);
-    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
-        return None;
-    }
+    let (end, _, pe) = vertex_face_ahead(bodies, v, face)?;
     let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
     Some((pe - q).norm())
 }
