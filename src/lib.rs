@@ -60,15 +60,6 @@ pub use body::{Body, BodyParams, Placement};
 pub use scene::{Scene, SceneError, load_scene, parse_scene};
 pub use world::World;
 
-/// A copy of `v` with the same room reserved. A derived `Clone` copies only the contents, and the
-/// tick's code takes a list's room as its limit (a full list is an overflow, counted, never grown on
-/// the tick): a world cloned with bare copies would drop what its lists no longer hold.
-pub(crate) fn clone_with_room<T: Clone>(v: &Vec<T>) -> Vec<T> {
-    let mut copy = Vec::with_capacity(v.capacity());
-    copy.extend_from_slice(v);
-    copy
-}
-
 /// A list whose room is part of its meaning: the tick's code reads a full list (its length at its
 /// capacity) as its limit, so a copy must keep the room, which a `Vec`'s derived `Clone` does not.
 /// Derefs to the `Vec`.
@@ -99,8 +90,12 @@ impl<T> Room<T> {
 }
 
 impl<T: Clone> Clone for Room<T> {
+    /// A copy with the same room reserved (a world cloned with bare copies would drop what its
+    /// lists no longer hold).
     fn clone(&self) -> Self {
-        Self(clone_with_room(&self.0))
+        let mut copy = Vec::with_capacity(self.0.capacity());
+        copy.extend_from_slice(&self.0);
+        Self(copy)
     }
 }
 

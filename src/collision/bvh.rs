@@ -8,8 +8,8 @@
 //! traversal order is fixed. Refit and queries allocate nothing: the output list has a capacity set up
 //! front, and a query that would exceed it says so instead of growing.
 
-use crate::Vec3;
 use crate::collision::tool::Aabb;
+use crate::{Room, Vec3};
 
 /// Triangles per leaf.
 const LEAF_SIZE: usize = 4;
@@ -26,44 +26,26 @@ struct Node {
     right: u32,
 }
 
-/// A hierarchy of swept triangle boxes for one body.
-#[derive(Debug)]
+/// A hierarchy of swept triangle boxes for one body (its lists keep their room when copied: its
+/// queries take their stack's room as their limit).
+#[derive(Clone, Debug)]
 pub struct TriangleBvh {
-    nodes: Vec<Node>,
-    order: Vec<u32>,
+    nodes: Room<Node>,
+    order: Room<u32>,
     /// Swept box of each triangle, by triangle index, from the last refit.
-    triangle_boxes: Vec<Aabb>,
-    centroids: Vec<Vec3>,
-    stack: Vec<(u32, u32)>,
+    triangle_boxes: Room<Aabb>,
+    centroids: Room<Vec3>,
+    stack: Room<(u32, u32)>,
     built_version: u64,
     /// The features each triangle owns (see [`TriangleBvh::owned`]), from the last rebuild.
-    owned: Vec<u8>,
+    owned: Room<u8>,
     /// Scratch of the ownership pass: each side as (smaller node, larger node, 3 × triangle + side).
-    side_keys: Vec<(u32, u32, u32)>,
+    side_keys: Room<(u32, u32, u32)>,
     /// Scratch of the ownership pass: whether a node was met yet.
-    node_seen: Vec<bool>,
+    node_seen: Room<bool>,
     /// Scratch of the refit: each node's box over the tick (a node is shared by about six
     /// triangles: its box is taken once).
-    node_boxes: Vec<Aabb>,
-}
-
-impl Clone for TriangleBvh {
-    /// A copy with the same room reserved (its queries take their stack's room as their limit).
-    fn clone(&self) -> Self {
-        use crate::clone_with_room as room;
-        Self {
-            nodes: room(&self.nodes),
-            order: room(&self.order),
-            triangle_boxes: room(&self.triangle_boxes),
-            centroids: room(&self.centroids),
-            stack: room(&self.stack),
-            built_version: self.built_version,
-            owned: room(&self.owned),
-            side_keys: room(&self.side_keys),
-            node_seen: room(&self.node_seen),
-            node_boxes: room(&self.node_boxes),
-        }
-    }
+    node_boxes: Room<Aabb>,
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
@@ -88,16 +70,16 @@ impl TriangleBvh {
     /// allocates nothing for a mesh of up to that many.
     pub fn with_capacity(triangles: usize) -> Self {
         Self {
-            nodes: Vec::with_capacity(2 * triangles / LEAF_SIZE + 2),
-            order: Vec::with_capacity(triangles),
-            triangle_boxes: Vec::with_capacity(triangles),
-            centroids: Vec::with_capacity(triangles),
-            stack: Vec::with_capacity(256),
+            nodes: Room::with_capacity(2 * triangles / LEAF_SIZE + 2),
+            order: Room::with_capacity(triangles),
+            triangle_boxes: Room::with_capacity(triangles),
+            centroids: Room::with_capacity(triangles),
+            stack: Room::with_capacity(256),
             built_version: 0,
-            owned: Vec::with_capacity(triangles),
-            side_keys: Vec::with_capacity(3 * triangles),
-            node_seen: Vec::with_capacity(3 * triangles + 3),
-            node_boxes: Vec::with_capacity(3 * triangles + 3),
+            owned: Room::with_capacity(triangles),
+            side_keys: Room::with_capacity(3 * triangles),
+            node_seen: Room::with_capacity(3 * triangles + 3),
+            node_boxes: Room::with_capacity(3 * triangles + 3),
         }
     }
 
