@@ -759,7 +759,15 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
 fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Option<Contact> {
     let (a0, a1) = (end_of(bodies, a[0]), end_of(bodies, a[1]));
     let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
-    if !edges_may_touch(&a0, &a1, &b0, &b1) {
+    // Boxes farther apart than the skin along an axis: the edges are too (the nearest points'
+    // distance is at least that gap).
+    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+    let (low_a, high_a) = (a0.inf(&a1), a0.sup(&a1));
+    let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
+    let apart = (0..3).fold(false, |apart, k| {
+        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
+    });
+    if apart || !nearest_inside_a(&a0, &a1, &b0, &b1) {
         return None;
     }
     let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
@@ -808,20 +816,6 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
         normal_impulse: 0.0,
         tangent_impulse: Vec3::zeros(),
     })
-}
-
-/// False when edges (a0, a1) and (b0, b1) (ends of tick) are certainly not in contact as
-/// [`edge_edge_contact`] takes it: their boxes are farther apart than the skin along an axis (the
-/// nearest points' distance is at least that gap), or their nearest points are not inside edge a.
-#[inline(always)]
-fn edges_may_touch(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
-    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    let (low_a, high_a) = (a0.inf(a1), a0.sup(a1));
-    let (low_b, high_b) = (b0.inf(b1), b0.sup(b1));
-    let apart = (0..3).fold(false, |apart, k| {
-        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
-    });
-    !apart & nearest_inside_a(a0, a1, b0, b1)
 }
 
 /// False when the nearest points of segments (a0, a1) and (b0, b1) that
