@@ -27,9 +27,7 @@ use crate::Vec3;
 use crate::body::Body;
 use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
-use crate::collision::tool::{
-    Aabb, closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
-};
+use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_segment_distance};
 use crate::contact::tool::NO_TOOL;
 
 /// Contact skin (m): a vertex that ends the tick within this distance of another body's face is in
@@ -124,17 +122,12 @@ impl Contact {
             .chain((0..3).map(|k| (self.b[k], -self.wb[k])))
             .filter(|(_, w)| *w != 0.0)
     }
-
-    /// Side a's point less side b's, from `position` of each node.
-    fn relative(&self, position: impl Fn(NodeRef) -> Vec3) -> Vec3 {
-        self.nodes()
-            .fold(Vec3::zeros(), |acc, (r, w)| acc + position(r) * w)
-    }
 }
 
 /// A contact's nodes of non-zero weight, in the order of [`Contact::nodes`] (side a's weights, then
-/// side b's negated), with their inverse masses for the response: fixed over a tick's solves, so the
-/// sweeps read them from one place rather than going through the iterator and the tool check.
+/// side b's negated), with their inverse masses and their places in the solver's node list
+/// ([`SolverNodes`]): fixed over a tick's solves, so the sweeps read them from one place rather
+/// than going through the iterator and the tool check.
 #[derive(Clone, Copy, Debug)]
 struct ContactNodes {
     count: usize,
@@ -143,6 +136,16 @@ struct ContactNodes {
     inverse_masses: [f64; 5],
     /// Each weight over the tick (1/s), as the force of an impulse on the node's body takes it.
     weights_per_second: [f64; 5],
+    /// Each node's place in the solver's node list.
+    slots: [u32; 5],
+    /// Normal speed (m/s, ≤ 0) the contact may close its gap at over the tick: down to the rest
+    /// distance, no more.
+    target_speed: f64,
+    /// 1 / compliance (kg): the effective mass along any direction.
+    effective_mass: f64,
+    /// The work the contact's impulses did on side a's and side b's nodes this tick, in absolute
+    /// value (J).
+    work: [f64; 2],
 }
 
 impl ContactNodes {
@@ -153,6 +156,10 @@ impl ContactNodes {
             weights: [0.0; 5],
             inverse_masses: [0.0; 5],
             weights_per_second: [0.0; 5],
+            slots: [0; 5],
+            target_speed: ((REST_DISTANCE - c.gap) / dt).min(0.0),
+            effective_mass: 0.0,
+            work: [0.0; 2],
         };
         for (r, w) in c.nodes() {
             nodes.refs[nodes.count] = r;
@@ -164,15 +171,104 @@ impl ContactNodes {
         nodes
     }
 
-    /// Side a's point less side b's, from `value` of each node (the same sum as
-    /// [`Contact::relative`]).
+    /// Side a's point less side b's, from `value` of each node in the solver's list.
     #[inline(always)]
-    fn relative(&self, value: impl Fn(NodeRef) -> Vec3) -> Vec3 {
+    fn relative(&self, nodes: &[SolverNode], value: impl Fn(&SolverNode) -> Vec3) -> Vec3 {
         let mut sum = Vec3::zeros();
         for i in 0..self.count {
-            sum += value(self.refs[i]) * self.weights[i];
+            sum += value(&nodes[self.slots[i] as usize]) * self.weights[i];
         }
         sum
+    }
+}
+
+/// No place in the solver's node list.
+const NO_SLOT: u32 = u32::MAX;
+
+/// A node of the response's contacts as the solver reads and changes it: where it started and ends
+/// the tick, its displacement's velocity over the tick, its velocity and inverse mass.
+#[derive(Clone, Copy, Debug)]
+struct SolverNode {
+    r: NodeRef,
+    start: Vec3,
+    end: Vec3,
+    /// (end − start) / Δt when the node was listed, then changed by each impulse's Δv.
+    motion: Vec3,
+    velocity: Vec3,
+    inverse_mass: f64,
+    /// Whether a contact of the node took a normal impulse (it ends with its displacement's velocity).
+    pushed: bool,
+}
+
+/// The nodes of the response's contacts, each once, side by side. The sweeps read and change this
+/// compact list instead of the bodies' arrays (and a node's displacement's velocity is kept up to
+/// date by each impulse instead of taken again, with three divisions, from its end and start at
+/// each read); the ends and velocities go back to the bodies once the response is done.
+#[derive(Clone, Debug)]
+struct SolverNodes {
+    nodes: Room<SolverNode>,
+    /// Per body and node, its place in the list ([`NO_SLOT`]: none; every entry is `NO_SLOT`
+    /// between ticks), with room for the body's most nodes.
+    slot_of: Vec<Room<u32>>,
+}
+
+impl SolverNodes {
+    fn new(bodies: &[Body], spare: usize, spare_nodes: usize) -> Self {
+        let slot_of: Vec<Room<u32>> = bodies
+            .iter()
+            .map(|b| Room::with_capacity(b.mesh_capacity().0.max(b.node_count())))
+            .chain((0..spare).map(|_| Room::with_capacity(spare_nodes)))
+            .collect();
+        // Each node at most once.
+        let most = slot_of.iter().map(|m| m.capacity()).sum::<usize>();
+        Self {
+            nodes: Room::with_capacity(most),
+            slot_of,
+        }
+    }
+
+    /// The place of node `r` in the lists, listing it if it is not yet; `None` when the lists are
+    /// full (they have room for every node of every body: not expected).
+    fn slot(&mut self, bodies: &[Body], r: NodeRef, dt: f64) -> Option<u32> {
+        let map = &mut self.slot_of[r.body];
+        if map.len() <= r.node {
+            // Within the room reserved for the body's most nodes.
+            map.resize(bodies[r.body].node_count().max(r.node + 1), NO_SLOT);
+        }
+        if map[r.node] != NO_SLOT {
+            return Some(map[r.node]);
+        }
+        if self.nodes.len() == self.nodes.capacity() {
+            return None;
+        }
+        let slot = self.nodes.len() as u32;
+        map[r.node] = slot;
+        let s = &bodies[r.body].surface;
+        let (start, end) = (
+            s.position_in_world[r.node],
+            s.next_position_in_world[r.node],
+        );
+        self.nodes.push(SolverNode {
+            r,
+            start,
+            end,
+            motion: (end - start) / dt,
+            velocity: s.velocity_in_world[r.node],
+            inverse_mass: inverse_mass_of(bodies, r),
+            pushed: false,
+        });
+        Some(slot)
+    }
+
+    /// The ends and velocities back to the bodies, and the lists emptied.
+    fn write_back(&mut self, bodies: &mut [Body]) {
+        for n in &self.nodes {
+            let s = &mut bodies[n.r.body].surface;
+            s.next_position_in_world[n.r.node] = n.end;
+            s.velocity_in_world[n.r.node] = n.velocity;
+            self.slot_of[n.r.body][n.r.node] = NO_SLOT;
+        }
+        self.nodes.clear();
     }
 }
 
@@ -184,6 +280,8 @@ pub struct BodyContactScratch {
     contacts: Room<Contact>,
     /// The nodes of each contact of `contacts` (after the one-per-vertex selection).
     contact_nodes: Room<ContactNodes>,
+    /// The contacts' nodes, each once, as the solver reads and moves them.
+    solver_nodes: SolverNodes,
     /// The contacts' keys and places, sorted (see [`packed_key`]).
     order: Room<((u64, u64), u32)>,
     found: Room<u32>,
@@ -260,6 +358,7 @@ impl BodyContactScratch {
             pairs: Room::with_capacity(PAIR_CAPACITY),
             contacts: Room::with_capacity(CONTACT_CAPACITY),
             contact_nodes: Room::with_capacity(CONTACT_CAPACITY),
+            solver_nodes: SolverNodes::new(bodies, spare, 3 * spare_triangles + 3),
             order: Room::with_capacity(CONTACT_CAPACITY),
             found: Room::with_capacity(FOUND_CAPACITY),
             near_triangles: Room::with_capacity(most_triangles),
@@ -753,26 +852,88 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     })
 }
 
+/// Edge `a` of a body at the end of the tick, with what the tests of its pairs share: taken once per
+/// edge rather than once per pair.
+struct EdgeAtEnd {
+    refs: [NodeRef; 2],
+    a0: Vec3,
+    a1: Vec3,
+    /// `a1 − a0` and its square length.
+    d1: Vec3,
+    length2: f64,
+    /// The corners of the box of its ends.
+    low: Vec3,
+    high: Vec3,
+}
+
+impl EdgeAtEnd {
+    fn of(bodies: &[Body], refs: [NodeRef; 2]) -> Self {
+        let (a0, a1) = (end_of(bodies, refs[0]), end_of(bodies, refs[1]));
+        let d1 = a1 - a0;
+        Self {
+            refs,
+            a0,
+            a1,
+            d1,
+            length2: d1.norm_squared(),
+            low: a0.inf(&a1),
+            high: a0.sup(&a1),
+        }
+    }
+}
+
 /// The contact of edge `a` with edge `b` (of another body) where their nearest points are inside
 /// both (nearest at an end, it is a vertex's contact) and within the skin at the end of the tick.
 /// The normal is the line between the nearest points, turned to where `a` was at the start.
-fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Option<Contact> {
-    let (a0, a1) = (end_of(bodies, a[0]), end_of(bodies, a[1]));
+///
+/// The nearest points are those of [`crate::collision::tool::segment_segment_closest`], with its
+/// operations in its order (so its bits), taken only as far as they can be inside both: a
+/// degenerate edge, or nearest points at an end of either, give no contact. Most pairs of a stack
+/// are turned down before any division: by their ends' boxes farther apart than the skin, then by
+/// the first parameter's numerator, `b f − c e`, not between 0 and its denominator (the parameter
+/// would be clamped to an end; rounding is monotone, so the quotient is then ≤ 0 or ≥ 1).
+fn edge_edge_contact(bodies: &[Body], edge: &EdgeAtEnd, b: [NodeRef; 2]) -> Option<Contact> {
+    let (a0, a1) = (edge.a0, edge.a1);
     let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
     // Boxes farther apart than the skin along an axis: the edges are too (the nearest points'
     // distance is at least that gap).
     let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    let (low_a, high_a) = (a0.inf(&a1), a0.sup(&a1));
+    let (low_a, high_a) = (edge.low, edge.high);
     let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
     let apart = (0..3).fold(false, |apart, k| {
         apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
     });
-    if apart || !nearest_inside_a(&a0, &a1, &b0, &b1) {
+    if apart {
         return None;
     }
-    let (s, t) = segment_segment_closest(&a0, &a1, &b0, &b1);
+    let d1 = edge.d1;
+    let d2 = b1 - b0;
+    let r = a0 - b0;
+    let a = edge.length2;
+    let e = d2.norm_squared();
+    let tiny = f64::MIN_POSITIVE;
+    // A degenerate edge: the nearest points are at an end of it.
+    if a <= tiny || e <= tiny {
+        return None;
+    }
+    let f = d2.dot(&r);
+    let c = d1.dot(&r);
+    let b_ = d1.dot(&d2);
+    let denominator = a * e - b_ * b_;
+    let numerator = b_ * f - c * e;
+    // The first parameter is clamped to an end unless 0 < numerator < denominator.
+    if !((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator)) {
+        return None;
+    }
     const INNER: f64 = 1e-6;
-    if !(INNER..=1.0 - INNER).contains(&s) || !(INNER..=1.0 - INNER).contains(&t) {
+    let s = numerator / denominator;
+    if !(INNER..=1.0 - INNER).contains(&s) {
+        return None;
+    }
+    // The second, unless it is clamped to an end (then the first is at an end too, or not
+    // inside the second's).
+    let t = (b_ * s + f) / e;
+    if !(INNER..=1.0 - INNER).contains(&t) {
         return None;
     }
     let pa = a0 + (a1 - a0) * s;
@@ -781,6 +942,7 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
     if distance > CONTACT_SKIN {
         return None;
     }
+    let a = edge.refs;
     let start_a = start_of(bodies, a[0]) * (1.0 - s) + start_of(bodies, a[1]) * s;
     let start_b = start_of(bodies, b[0]) * (1.0 - t) + start_of(bodies, b[1]) * t;
     let before = start_a - start_b;
@@ -816,31 +978,6 @@ fn edge_edge_contact(bodies: &[Body], a: [NodeRef; 2], b: [NodeRef; 2]) -> Optio
         normal_impulse: 0.0,
         tangent_impulse: Vec3::zeros(),
     })
-}
-
-/// False when the nearest points of segments (a0, a1) and (b0, b1) that
-/// [`segment_segment_closest`] finds are certainly not inside segment a: the numerator of its first
-/// parameter on the lines, `b f − c e`, is not between 0 and its denominator (the parameter it
-/// divides out would then be clamped to an end, and stays at an end whatever follows). The same
-/// operations as that function's up to its division, so the answer agrees with it to the bit, with
-/// no division on the pairs it turns down (most of a stack's).
-#[inline]
-fn nearest_inside_a(a0: &Vec3, a1: &Vec3, b0: &Vec3, b1: &Vec3) -> bool {
-    let d1 = a1 - a0;
-    let d2 = b1 - b0;
-    let r = a0 - b0;
-    let a = d1.norm_squared();
-    let e = d2.norm_squared();
-    let tiny = f64::MIN_POSITIVE;
-    let (b, c, f) = (d1.dot(&d2), d1.dot(&r), d2.dot(&r));
-    let denominator = a * e - b * b;
-    let numerator = b * f - c * e;
-    // A degenerate segment: not decided here. denominator ≤ 0: s = 0. Otherwise numerator /
-    // denominator rounds to ≤ 0 when the numerator is ≤ 0, and to ≥ 1 when it is ≥ the
-    // denominator (rounding is monotone). With no branch: most pairs of a stack are decided here.
-    (a <= tiny)
-        | (e <= tiny)
-        | ((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator))
 }
 
 /// A body's nodes four at a time: their points as three vectors of four coordinates each, lane `l`
@@ -1101,6 +1238,7 @@ pub fn respond_to_body_contacts(
                 let mut swept = swept_box(&bodies[i], &[ea, eb]);
                 swept.inflate(CONTACT_SKIN);
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+                let edge = EdgeAtEnd::of(bodies, a);
                 let mut best: Option<Contact> = None;
                 while k < edges.1 as usize && entries[k].feature == feature {
                     let found = entries[k].triangle as usize;
@@ -1127,7 +1265,7 @@ pub fn respond_to_body_contacts(
                                 node: t[(side + 1) % 3] as usize,
                             },
                         ]);
-                        if let Some(c) = edge_edge_contact(bodies, a, b) {
+                        if let Some(c) = edge_edge_contact(bodies, &edge, b) {
                             keep_nearer(&mut best, c);
                         }
                     }
@@ -1161,74 +1299,102 @@ pub fn respond_to_body_contacts(
     permute(contacts, order);
     contacts.dedup_by(|later, first| key(later) == key(first));
     scratch.contact_nodes.clear();
-    for c in scratch.contacts.iter_mut() {
+    let solver_nodes = &mut scratch.solver_nodes;
+    let mut kept = 0;
+    for k in 0..scratch.contacts.len() {
+        let mut c = scratch.contacts[k];
         let (a, b) = (c.a[0].body, c.b[0].body);
         c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
-        let nodes = ContactNodes::of(bodies, c, dt);
+        let mut nodes = ContactNodes::of(bodies, &c, dt);
         c.compliance = (0..nodes.count)
             .map(|i| nodes.weights[i] * nodes.weights[i] * nodes.inverse_masses[i])
             .sum::<f64>();
+        nodes.effective_mass = 1.0 / c.compliance;
+        let mut listed = true;
+        for i in 0..nodes.count {
+            match solver_nodes.slot(bodies, nodes.refs[i], dt) {
+                Some(slot) => nodes.slots[i] = slot,
+                None => listed = false,
+            }
+        }
+        if !listed {
+            counters.contacts_dropped += 1;
+            continue;
+        }
+        scratch.contacts[kept] = c;
+        kept += 1;
         scratch.contact_nodes.push(nodes);
     }
+    scratch.contacts.truncate(kept);
     counters.contacts = scratch.contacts.len() as u32;
     // The displacements over the tick (where the nodes end: no approach past the rest distance,
     // no slip where friction holds; the impulses change the end velocities alike). Each impulse
     // changes the pair's momentum by equal and opposite amounts.
     solve(
-        bodies,
-        (&mut scratch.contacts, &scratch.contact_nodes),
-        (&mut scratch.forces, &mut scratch.work),
+        solver_nodes,
+        (&mut scratch.contacts, &mut scratch.contact_nodes),
         dt,
     );
+    // Each contact's force on the nodes of each side over the tick (its accumulated impulse with
+    // their weights) and the work its impulses did, on their bodies.
+    for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
+        let impulse = c.normal * c.normal_impulse + c.tangent_impulse;
+        for i in 0..nodes.count {
+            scratch.forces[nodes.refs[i].body] += impulse * nodes.weights_per_second[i];
+        }
+        scratch.work[c.a[0].body] += nodes.work[0];
+        scratch.work[c.b[0].body] += nodes.work[1];
+    }
     // A node the response pushed ends the tick with its displacement's velocity, (end − start) / Δt
     // (symplectic Euler's own relation): the velocity a sub-stepped node ended its sub-steps
     // with, into the contact or along it, would otherwise stay in it without moving it — kinetic
     // energy that is not motion, pushed back every tick.
     for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
-        if c.normal_impulse <= 0.0 {
-            continue;
-        }
-        for k in 0..nodes.count {
-            if nodes.inverse_masses[k] == 0.0 {
-                continue;
+        if c.normal_impulse > 0.0 {
+            for &slot in &nodes.slots[..nodes.count] {
+                solver_nodes.nodes[slot as usize].pushed = true;
             }
-            let r = nodes.refs[k];
-            let s = &mut bodies[r.body].surface;
-            s.velocity_in_world[r.node] =
-                (s.next_position_in_world[r.node] - s.position_in_world[r.node]) / dt;
+        }
+    }
+    for n in solver_nodes.nodes.iter_mut() {
+        if n.pushed && n.inverse_mass != 0.0 {
+            n.velocity = (n.end - n.start) / dt;
         }
     }
     // Positions closer than the rest distance at the end of the tick are parted by a fraction of
     // the shortfall, shared like an impulse (the pair's mass-weighted centre does not move).
-    for k in 0..scratch.contacts.len() {
-        let c = scratch.contacts[k];
+    for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
         if c.compliance <= 0.0 {
             continue;
         }
-        let gap = c.relative(|r| end_of(bodies, r)).dot(&c.normal);
+        let gap = nodes
+            .relative(&solver_nodes.nodes, |n| n.end)
+            .dot(&c.normal);
         if gap >= REST_DISTANCE {
             continue;
         }
-        let push = c.normal * (PART_RATE * (REST_DISTANCE - gap) / c.compliance);
-        for (r, w) in c.nodes() {
-            move_end(bodies, r, push * w);
+        let push = c.normal * (PART_RATE * (REST_DISTANCE - gap) * nodes.effective_mass);
+        for i in 0..nodes.count {
+            let slot = nodes.slots[i] as usize;
+            let n = &mut solver_nodes.nodes[slot];
+            if n.inverse_mass != 0.0 {
+                n.end += push * nodes.weights[i] * n.inverse_mass;
+            }
         }
     }
     // The ends of tick the response moved (its displacement impulses and the parting: nodes of
     // its contacts that a tool does not hold), for the net's hierarchies and bounds.
-    for nodes in &scratch.contact_nodes {
-        for k in 0..nodes.count {
-            if nodes.inverse_masses[k] == 0.0 {
-                continue;
-            }
-            let r = nodes.refs[k];
-            let end = end_of(bodies, r);
-            scratch.tight_bounds[r.body].include(&end);
-            let motion = (end - start_of(bodies, r)).norm();
-            let largest = &mut scratch.max_motion[r.body];
-            *largest = largest.max(motion);
+    for n in &solver_nodes.nodes {
+        if n.inverse_mass == 0.0 {
+            continue;
         }
+        let (r, end) = (n.r, n.end);
+        scratch.tight_bounds[r.body].include(&end);
+        let motion = (end - n.start).norm();
+        let largest = &mut scratch.max_motion[r.body];
+        *largest = largest.max(motion);
     }
+    solver_nodes.write_back(bodies);
     counters
 }
 
@@ -1837,30 +2003,30 @@ fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
 
 /// Sweeps over `contacts` in order with accumulated impulses (normal ≥ 0, tangential within the
 /// Coulomb cone): a contact may close its gap down to the rest distance over a step and no more,
-/// and does not slip where friction holds.
+/// and does not slip where friction holds. On the solver's node lists (no division but the cone's).
 fn solve(
-    bodies: &mut [Body],
-    (contacts, contact_nodes): (&mut [Contact], &[ContactNodes]),
-    (forces, work): (&mut [Vec3], &mut [f64]),
+    nodes_of: &mut SolverNodes,
+    (contacts, contact_nodes): (&mut [Contact], &mut [ContactNodes]),
     dt: f64,
 ) {
     for _ in 0..SOLVER_ITERATIONS {
-        for (c, nodes) in contacts.iter_mut().zip(contact_nodes) {
+        for (c, nodes) in contacts.iter_mut().zip(contact_nodes.iter_mut()) {
             if c.compliance <= 0.0 {
                 continue;
             }
-            let relative = nodes.relative(|r| (end_of(bodies, r) - start_of(bodies, r)) / dt);
+            let relative = nodes.relative(&nodes_of.nodes, |n| n.motion);
             // Normal: close the gap down to the rest distance, no more (closer than that: stop
             // closing; the positions are parted afterwards).
-            let target = ((REST_DISTANCE - c.gap) / dt).min(0.0);
             let normal_speed = relative.dot(&c.normal);
-            let accumulated = (c.normal_impulse + (target - normal_speed) / c.compliance).max(0.0);
+            let accumulated = (c.normal_impulse
+                + (nodes.target_speed - normal_speed) * nodes.effective_mass)
+                .max(0.0);
             let normal_change = accumulated - c.normal_impulse;
             c.normal_impulse = accumulated;
             // Friction: stop the tangential slip, within the Coulomb cone of the normal impulse.
             let after = relative + c.normal * (normal_change * c.compliance);
             let slip = after - c.normal * after.dot(&c.normal);
-            let mut tangent = c.tangent_impulse - slip / c.compliance;
+            let mut tangent = c.tangent_impulse - slip * nodes.effective_mass;
             let limit = c.friction * c.normal_impulse;
             let size = tangent.norm();
             // Scaled back into the cone where it leaves it, with no branch: the factor is 1 inside
@@ -1872,34 +2038,30 @@ fn solve(
             if impulse == Vec3::zeros() {
                 continue;
             }
-            apply_impulse(bodies, nodes, &impulse, (&mut *forces, &mut *work), dt);
+            apply_impulse(nodes_of, nodes, &impulse, dt);
         }
     }
 }
 
 /// Applies `impulse` to a contact's side a and, opposite, to side b, with their weights: the end
-/// velocities change, and the end positions with them. The body takes its
-/// share of the impulse; a node a tool moves passes it on to the tool (its motion is the tool's).
-fn apply_impulse(
-    bodies: &mut [Body],
-    nodes: &ContactNodes,
-    impulse: &Vec3,
-    (forces, work): (&mut [Vec3], &mut [f64]),
-    dt: f64,
-) {
+/// velocities change, and the end positions with them; the work it does on each side is added to
+/// the contact's. A node a tool moves takes no share (its motion is the tool's): the contact's
+/// force on it goes on to the tool.
+#[inline(always)]
+fn apply_impulse(nodes_of: &mut SolverNodes, nodes: &mut ContactNodes, impulse: &Vec3, dt: f64) {
     for i in 0..nodes.count {
-        let (r, w, inverse_mass) = (nodes.refs[i], nodes.weights[i], nodes.inverse_masses[i]);
-        forces[r.body] += impulse * nodes.weights_per_second[i];
-        work[r.body] += (impulse * w)
-            .dot(&bodies[r.body].surface.velocity_in_world[r.node])
-            .abs();
+        let (w, inverse_mass) = (nodes.weights[i], nodes.inverse_masses[i]);
+        let slot = nodes.slots[i] as usize;
+        // Side a's nodes come first, with positive weights.
+        let n = &mut nodes_of.nodes[slot];
+        nodes.work[usize::from(w < 0.0)] += (impulse * w).dot(&n.velocity).abs();
         if inverse_mass == 0.0 {
             continue;
         }
         let dv = impulse * (w * inverse_mass);
-        let s = &mut bodies[r.body].surface;
-        s.next_position_in_world[r.node] += dv * dt;
-        s.velocity_in_world[r.node] += dv;
+        n.end += dv * dt;
+        n.motion += dv;
+        n.velocity += dv;
     }
 }
 
@@ -1962,14 +2124,6 @@ fn face_of(s: &crate::body::Surface, j: usize, t: usize) -> [NodeRef; 3] {
 /// The pair with its smaller node first.
 fn sorted(e: [NodeRef; 2]) -> [NodeRef; 2] {
     if e[1] < e[0] { [e[1], e[0]] } else { e }
-}
-
-/// Moves node `r`'s end of tick by `shift` × its inverse mass (positions only).
-fn move_end(bodies: &mut [Body], r: NodeRef, shift: Vec3) {
-    let inverse_mass = inverse_mass_of(bodies, r);
-    if inverse_mass != 0.0 {
-        bodies[r.body].surface.next_position_in_world[r.node] += shift * inverse_mass;
-    }
 }
 
 #[cfg(test)]
