@@ -2024,8 +2024,10 @@ fn solve(
             let normal_change = accumulated - c.normal_impulse;
             c.normal_impulse = accumulated;
             // Friction: stop the tangential slip, within the Coulomb cone of the normal impulse.
-            let after = relative + c.normal * (normal_change * c.compliance);
-            let slip = after - c.normal * after.dot(&c.normal);
+            // The compliance is the same along every direction, so the normal impulse's change
+            // leaves the slip as it was: the slip and the impulse that stops it are taken from the
+            // relative motion alone, side by side with the normal impulse.
+            let slip = relative - c.normal * normal_speed;
             let mut tangent = c.tangent_impulse - slip * nodes.effective_mass;
             let limit = c.friction * c.normal_impulse;
             let size = tangent.norm();
