@@ -69,7 +69,9 @@ const STOP_SHORT: f64 = 0.9;
 /// What the body–body stage did in one step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BodyContactCounters {
-    /// Triangle pairs the broad phase passed to the narrow phase.
+    /// Pairs the broad phase passed to the narrow phase: the response's vertex–face pairs (a vertex
+    /// and a face whose boxes over the tick meet within the skin) and edge–edge pairs (two edges
+    /// whose ends' boxes at the end of the tick are within the skin), and the net's triangle pairs.
     pub candidate_pairs: u32,
     /// Vertex–face and edge–edge collisions answered.
     pub collisions: u32,
@@ -94,8 +96,6 @@ pub struct BodyContactCounters {
 /// weight 0). The contact point of each side is the weighted sum of its nodes.
 #[derive(Clone, Copy, Debug)]
 struct Contact {
-    /// 0: vertex–face, 1: edge–edge.
-    kind: u8,
     a: [NodeRef; 2],
     wa: [f64; 2],
     b: [NodeRef; 3],
@@ -282,8 +282,6 @@ pub struct BodyContactScratch {
     contact_nodes: Room<ContactNodes>,
     /// The contacts' nodes, each once, as the solver reads and moves them.
     solver_nodes: SolverNodes,
-    /// The contacts' keys and places, sorted (see [`packed_key`]).
-    order: Room<((u64, u64), u32)>,
     found: Room<u32>,
     /// A body's triangles whose boxes meet another body's bounds (room for the most triangles a
     /// body may have).
@@ -359,7 +357,6 @@ impl BodyContactScratch {
             contacts: Room::with_capacity(CONTACT_CAPACITY),
             contact_nodes: Room::with_capacity(CONTACT_CAPACITY),
             solver_nodes: SolverNodes::new(bodies, spare, 3 * spare_triangles + 3),
-            order: Room::with_capacity(CONTACT_CAPACITY),
             found: Room::with_capacity(FOUND_CAPACITY),
             near_triangles: Room::with_capacity(most_triangles),
             faces_near: Room::with_capacity(most_triangles),
@@ -837,7 +834,6 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
         return None;
     }
     Some(Contact {
-        kind: 0,
         a: [v, v],
         wa: [1.0, 0.0],
         b: face,
@@ -867,6 +863,18 @@ struct EdgeAtEnd {
 }
 
 impl EdgeAtEnd {
+    /// Whether the box of the ends `b0`, `b1` of another edge is farther from the edge's than the
+    /// skin along an axis: the edges are then too (the nearest points' distance is at least that
+    /// gap), and not in contact.
+    #[inline(always)]
+    fn apart(&self, b0: &Vec3, b1: &Vec3) -> bool {
+        let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
+        let (low_b, high_b) = (b0.inf(b1), b0.sup(b1));
+        (0..3).fold(false, |apart, k| {
+            apart | (low_b[k] - self.high[k] > reach) | (self.low[k] - high_b[k] > reach)
+        })
+    }
+
     fn of(bodies: &[Body], refs: [NodeRef; 2]) -> Self {
         let (a0, a1) = (end_of(bodies, refs[0]), end_of(bodies, refs[1]));
         let d1 = a1 - a0;
@@ -886,26 +894,20 @@ impl EdgeAtEnd {
 /// both (nearest at an end, it is a vertex's contact) and within the skin at the end of the tick.
 /// The normal is the line between the nearest points, turned to where `a` was at the start.
 ///
-/// The nearest points are those of [`crate::collision::tool::segment_segment_closest`], with its
-/// operations in its order (so its bits), taken only as far as they can be inside both: a
-/// degenerate edge, or nearest points at an end of either, give no contact. Most pairs of a stack
-/// are turned down before any division: by their ends' boxes farther apart than the skin, then by
+/// `b0`, `b1`: the ends of `b` at the end of the tick, whose box the caller found within the skin
+/// of the edge's ([`EdgeAtEnd::apart`]). The nearest points are those of
+/// [`crate::collision::tool::segment_segment_closest`], with its operations in its order (so its
+/// bits), taken only as far as they can be inside both: a degenerate edge, or nearest points at an
+/// end of either, give no contact. Most pairs of a stack are turned down before any division, by
 /// the first parameter's numerator, `b f − c e`, not between 0 and its denominator (the parameter
 /// would be clamped to an end; rounding is monotone, so the quotient is then ≤ 0 or ≥ 1).
-fn edge_edge_contact(bodies: &[Body], edge: &EdgeAtEnd, b: [NodeRef; 2]) -> Option<Contact> {
+fn edge_edge_contact(
+    bodies: &[Body],
+    edge: &EdgeAtEnd,
+    b: [NodeRef; 2],
+    (b0, b1): (Vec3, Vec3),
+) -> Option<Contact> {
     let (a0, a1) = (edge.a0, edge.a1);
-    let (b0, b1) = (end_of(bodies, b[0]), end_of(bodies, b[1]));
-    // Boxes farther apart than the skin along an axis: the edges are too (the nearest points'
-    // distance is at least that gap).
-    let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
-    let (low_a, high_a) = (edge.low, edge.high);
-    let (low_b, high_b) = (b0.inf(&b1), b0.sup(&b1));
-    let apart = (0..3).fold(false, |apart, k| {
-        apart | (low_b[k] - high_a[k] > reach) | (low_a[k] - high_b[k] > reach)
-    });
-    if apart {
-        return None;
-    }
     let d1 = edge.d1;
     let d2 = b1 - b0;
     let r = a0 - b0;
@@ -965,7 +967,6 @@ fn edge_edge_contact(bodies: &[Body], edge: &EdgeAtEnd, b: [NodeRef; 2]) -> Opti
         return None;
     }
     Some(Contact {
-        kind: 1,
         a,
         wa: [1.0 - s, s],
         b: [b[0], b[1], b[1]],
@@ -1176,7 +1177,6 @@ pub fn respond_to_body_contacts(
             let [vertices, edges] = scratch.cache.ranges[pair];
             let entries = &scratch.cache.entries[scratch.cache.current];
             let sj = &bodies[j].surface;
-            let bvh = &scratch.bvhs[j];
             let now = &mut scratch.now;
             let mut k = vertices.0 as usize;
             while k < vertices.1 as usize {
@@ -1231,43 +1231,39 @@ pub fn respond_to_body_contacts(
                     }
                 }
             }
+            // Each edge against the sides its list names: a side that could be in contact (within
+            // the skin at the end of the tick) has its ends' box within the skin of the edge's, so
+            // within the boxes the list was made from; `edge_edge_contact` turns the others down
+            // by their ends' boxes first.
             let mut k = edges.0 as usize;
             while k < edges.1 as usize {
                 let feature = entries[k].feature;
                 let (ea, eb) = (feature[0] as usize, feature[1] as usize);
-                let mut swept = swept_box(&bodies[i], &[ea, eb]);
-                swept.inflate(CONTACT_SKIN);
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
                 let edge = EdgeAtEnd::of(bodies, a);
                 let mut best: Option<Contact> = None;
                 while k < edges.1 as usize && entries[k].feature == feature {
-                    let found = entries[k].triangle as usize;
+                    let code = entries[k].triangle;
                     k += 1;
-                    if !now.of(j, found, &bodies[j]).overlaps(&swept) {
+                    let t = sj.triangles[(code / SIDES_PER_TRIANGLE) as usize];
+                    let side = (code % SIDES_PER_TRIANGLE) as usize;
+                    let b = sorted([
+                        NodeRef {
+                            body: j,
+                            node: t[side] as usize,
+                        },
+                        NodeRef {
+                            body: j,
+                            node: t[(side + 1) % 3] as usize,
+                        },
+                    ]);
+                    let ends = (end_of(bodies, b[0]), end_of(bodies, b[1]));
+                    if edge.apart(&ends.0, &ends.1) {
                         continue;
                     }
                     counters.candidate_pairs += 1;
-                    let t = sj.triangles[found];
-                    let owned = bvh.owned(found);
-                    for side in 0..3 {
-                        // Each side once, through the triangle that owns it (whose box meets the
-                        // edge's whenever the side's does).
-                        if owned & owns_side(side) == 0 {
-                            continue;
-                        }
-                        let b = sorted([
-                            NodeRef {
-                                body: j,
-                                node: t[side] as usize,
-                            },
-                            NodeRef {
-                                body: j,
-                                node: t[(side + 1) % 3] as usize,
-                            },
-                        ]);
-                        if let Some(c) = edge_edge_contact(bodies, &edge, b) {
-                            keep_nearer(&mut best, c);
-                        }
+                    if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                        keep_nearer(&mut best, c);
                     }
                 }
                 if let Some(c) = best {
@@ -1276,28 +1272,12 @@ pub fn respond_to_body_contacts(
             }
         }
     }
-    // One contact per vertex (or edge) and other body, the nearest (kept above), in a fixed order.
-    // Sorted through a list of keys and places rather than moving the contacts at each step.
-    let key = |c: &Contact| (c.kind, c.a, c.b[0].body);
-    let contacts = &mut scratch.contacts;
-    let order = &mut scratch.order;
-    order.clear();
-    order.extend(
-        contacts
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (packed_key(c), k as u32)),
-    );
-    order.sort_unstable_by(|(x_key, x), (y_key, y)| {
-        x_key.cmp(y_key).then_with(|| {
-            let (x, y) = (&contacts[*x as usize], &contacts[*y as usize]);
-            x.distance
-                .total_cmp(&y.distance)
-                .then_with(|| x.b.cmp(&y.b))
-        })
-    });
-    permute(contacts, order);
-    contacts.dedup_by(|later, first| key(later) == key(first));
+    // One contact per vertex (or edge) and other body, the nearest (kept above), in a fixed order:
+    // the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
+    // (edge) of a body is named in one run of its pair's list (through the one triangle that owns
+    // it), and the lists keep the order of a traversal of the hierarchies whose descent does not
+    // depend on the boxes (lists made at another tick, or every tick, name a subsequence of the
+    // same order): the same contacts in the same order, whenever the lists were made.
     scratch.contact_nodes.clear();
     let solver_nodes = &mut scratch.solver_nodes;
     let mut kept = 0;
@@ -1428,8 +1408,13 @@ const LISTED_IN_PART: u8 = 3;
 #[derive(Clone, Copy, Debug, Default)]
 struct Candidate {
     feature: [u32; 2],
+    /// For a vertex, the triangle; for an edge, a side of a triangle (the triangle times
+    /// [`SIDES_PER_TRIANGLE`] plus the side), one it owns.
     triangle: u32,
 }
+
+/// Stride of the sides of triangles in an edge's candidates.
+const SIDES_PER_TRIANGLE: u32 = 4;
 
 /// The candidate pairs of the response and of the net, kept from tick to tick (a Verlet list). Each
 /// body keeps the box of each node's trajectory when its pairs were last listed (its *reference*);
@@ -1857,7 +1842,23 @@ fn list_pair(
                 found.clear();
                 complete &= bvhs[j].query(&aabb, found);
                 for &triangle in found.iter() {
-                    complete &= push(out, Candidate { feature, triangle });
+                    if part == 0 {
+                        complete &= push(out, Candidate { feature, triangle });
+                        continue;
+                    }
+                    // An edge against the sides the triangle owns (each side of body j once).
+                    let owned = bvhs[j].owned(triangle as usize);
+                    for side in 0..3 {
+                        if owned & owns_side(side) != 0 {
+                            complete &= push(
+                                out,
+                                Candidate {
+                                    feature,
+                                    triangle: SIDES_PER_TRIANGLE * triangle + side as u32,
+                                },
+                            );
+                        }
+                    }
                 }
             }
         }
@@ -2078,39 +2079,6 @@ fn keep_nearer(best: &mut Option<Contact>, c: Contact) {
     });
     if nearer {
         *best = Some(c);
-    }
-}
-
-/// A contact's place in the response's order as two words: the order of `(kind, a, b[0].body)`
-/// (side a's two nodes are of one body, and node indices are 32-bit).
-#[inline]
-fn packed_key(c: &Contact) -> (u64, u64) {
-    debug_assert_eq!(c.a[0].body, c.a[1].body);
-    (
-        ((c.kind as u64) << 63) | ((c.a[0].body as u64) << 32) | c.a[0].node as u64,
-        ((c.a[1].node as u64) << 32) | c.b[0].body as u64,
-    )
-}
-
-/// Puts `items` in the order `order` lists (the second of each entry is an item's place before),
-/// moving each item once; `order` is left with every entry pointing at its own place.
-fn permute<T: Copy, K>(items: &mut [T], order: &mut [(K, u32)]) {
-    for start in 0..order.len() {
-        if order[start].1 as usize == start {
-            continue;
-        }
-        let first = items[start];
-        let mut k = start;
-        loop {
-            let from = order[k].1 as usize;
-            order[k].1 = k as u32;
-            if from == start {
-                items[k] = first;
-                break;
-            }
-            items[k] = items[from];
-            k = from;
-        }
     }
 }
 
