@@ -694,7 +694,20 @@ pub fn resolve_body_collisions(
                         node: v as usize,
                     });
                     let starts = |f: [NodeRef; 3]| f.map(|r| start_of(bodies, r));
-                    if triangles_apart(&starts(fa), &starts(fb), most) {
+                    let (sa, sb) = (starts(fa), starts(fb));
+                    if triangles_apart(&sa, &sb, most) {
+                        continue;
+                    }
+                    // Again with what these six nodes move (a body that moves fast in one place
+                    // leaves the bodies' bound loose everywhere else).
+                    let moved = |f: [NodeRef; 3], s: &[Vec3; 3]| {
+                        (0..3)
+                            .map(|c| (end_of(bodies, f[c]) - s[c]).norm_squared())
+                            .fold(0.0, f64::max)
+                            .sqrt()
+                    };
+                    let local = moved(fa, &sa) + moved(fb, &sb) + FILTER_MARGIN;
+                    if local < most && triangles_apart(&sa, &sb, local) {
                         continue;
                     }
                     // Each vertex and side through the one triangle that owns it: every
