@@ -1689,9 +1689,20 @@ impl CandidateCache {
                 }
                 let (lower_i, upper_i) =
                     reference_boxes(self.reference[i], &self.lower[i], &self.upper[i], body);
+                let (lower_j, upper_j) = reference_boxes(
+                    self.reference[j],
+                    &self.lower[j],
+                    &self.upper[j],
+                    &bodies[j],
+                );
                 let mut complete = list_pair(
                     (i, j, body),
                     (lower_i, upper_i),
+                    (
+                        &bodies[j].surface.triangles,
+                        (lower_j, upper_j),
+                        LIST_MARGIN_PER_SLACK * self.slack[j],
+                    ),
                     bvhs,
                     // A vertex's (edge's) box grown by the skin and its body's margin, against
                     // triangle boxes grown by theirs.
@@ -1821,6 +1832,7 @@ fn reference_boxes<'a>(
 fn list_pair(
     (i, j, body): (usize, usize, &Body),
     (lower, upper): (&[Vec3], &[Vec3]),
+    (triangles_j, (lower_j, upper_j), margin_j): (&[[u32; 3]], (&[Vec3], &[Vec3]), f64),
     bvhs: &mut [TriangleBvh],
     reach: f64,
     (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
@@ -1889,10 +1901,21 @@ fn list_pair(
                         complete &= push(out, Candidate { feature, triangle });
                         continue;
                     }
-                    // An edge against the sides the triangle owns (each side of body j once).
+                    // An edge against the sides the triangle owns (each side of body j once) whose
+                    // own boxes meet its: a side's box, from its two nodes' reference boxes grown
+                    // by the margin the hierarchy's are, lies within its triangle's.
                     let owned = bvhs[j].owned(triangle as usize);
+                    let corners_j = triangles_j[triangle as usize];
                     for side in 0..3 {
-                        if owned & owns_side(side) != 0 {
+                        let (na, nb) =
+                            (corners_j[side] as usize, corners_j[(side + 1) % 3] as usize);
+                        let mut side_box = Aabb::empty();
+                        for v in [na, nb] {
+                            side_box.include(&lower_j[v]);
+                            side_box.include(&upper_j[v]);
+                        }
+                        side_box.inflate(margin_j);
+                        if owned & owns_side(side) != 0 && side_box.overlaps(&aabb) {
                             complete &= push(
                                 out,
                                 Candidate {
