@@ -1668,7 +1668,7 @@ impl CandidateCache {
         next_pairs.clear();
 
         for (i, body) in bodies.iter().enumerate().take(n) {
-            for j in 0..n {
+            for (j, body_j) in bodies.iter().enumerate().take(n) {
                 let pair = i * slots + j;
                 if self.listed[pair] == LISTED {
                     let mut ranges = self.ranges[pair];
@@ -1689,19 +1689,18 @@ impl CandidateCache {
                 }
                 let (lower_i, upper_i) =
                     reference_boxes(self.reference[i], &self.lower[i], &self.upper[i], body);
-                let (lower_j, upper_j) = reference_boxes(
-                    self.reference[j],
-                    &self.lower[j],
-                    &self.upper[j],
-                    &bodies[j],
-                );
+                let (lower_j, upper_j) =
+                    reference_boxes(self.reference[j], &self.lower[j], &self.upper[j], body_j);
                 let mut complete = list_pair(
                     (i, j, body),
-                    (lower_i, upper_i),
                     (
-                        &bodies[j].surface.triangles,
-                        (lower_j, upper_j),
-                        LIST_MARGIN_PER_SLACK * self.slack[j],
+                        (lower_i, upper_i),
+                        OtherReference {
+                            triangles: &body_j.surface.triangles,
+                            lower: lower_j,
+                            upper: upper_j,
+                            margin: LIST_MARGIN_PER_SLACK * self.slack[j],
+                        },
                     ),
                     bvhs,
                     // A vertex's (edge's) box grown by the skin and its body's margin, against
@@ -1826,13 +1825,23 @@ fn reference_boxes<'a>(
     }
 }
 
-/// Lists body i's vertices against body j's triangles (and, when j > i, its edges), from the
-/// boxes the two hierarchies are fitted to and body i's boxes `lower`–`upper`, grown by `reach`,
-/// into `out`; the ranges written into `ranges`. False when a list was full (incomplete).
+/// Body j's triangles and the corners of its nodes' reference boxes, with the margin its
+/// hierarchy's boxes are grown by, as [`list_pair`] takes them.
+struct OtherReference<'a> {
+    triangles: &'a [[u32; 3]],
+    lower: &'a [Vec3],
+    upper: &'a [Vec3],
+    margin: f64,
+}
+
+/// Lists body i's vertices against body j's triangles (and, when j > i, its edges against the
+/// sides of j's triangles, each side once, through the triangle that owns it, where the side's own
+/// box meets the edge's), from the boxes the two hierarchies are fitted to and body i's boxes
+/// `lower`–`upper`, grown by `reach`, into `out`; the ranges written into `ranges`. False when a
+/// list was full (incomplete).
 fn list_pair(
     (i, j, body): (usize, usize, &Body),
-    (lower, upper): (&[Vec3], &[Vec3]),
-    (triangles_j, (lower_j, upper_j), margin_j): (&[[u32; 3]], (&[Vec3], &[Vec3]), f64),
+    ((lower, upper), reference_j): ((&[Vec3], &[Vec3]), OtherReference),
     bvhs: &mut [TriangleBvh],
     reach: f64,
     (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
@@ -1905,16 +1914,16 @@ fn list_pair(
                     // own boxes meet its: a side's box, from its two nodes' reference boxes grown
                     // by the margin the hierarchy's are, lies within its triangle's.
                     let owned = bvhs[j].owned(triangle as usize);
-                    let corners_j = triangles_j[triangle as usize];
+                    let corners_j = reference_j.triangles[triangle as usize];
                     for side in 0..3 {
                         let (na, nb) =
                             (corners_j[side] as usize, corners_j[(side + 1) % 3] as usize);
                         let mut side_box = Aabb::empty();
                         for v in [na, nb] {
-                            side_box.include(&lower_j[v]);
-                            side_box.include(&upper_j[v]);
+                            side_box.include(&reference_j.lower[v]);
+                            side_box.include(&reference_j.upper[v]);
                         }
-                        side_box.inflate(margin_j);
+                        side_box.inflate(reference_j.margin);
                         if owned & owns_side(side) != 0 && side_box.overlaps(&aabb) {
                             complete &= push(
                                 out,
