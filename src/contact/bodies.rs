@@ -146,6 +146,10 @@ struct ContactNodes {
     /// The work the contact's impulses did on side a's and side b's nodes this tick, in absolute
     /// value (J).
     work: [f64; 2],
+    /// The solver's update that last looked at the contact (0: none yet), and whether it changed
+    /// nothing then.
+    looked: u32,
+    idle: bool,
 }
 
 impl ContactNodes {
@@ -160,6 +164,8 @@ impl ContactNodes {
             target_speed: ((REST_DISTANCE - c.gap) / dt).min(0.0),
             effective_mass: 0.0,
             work: [0.0; 2],
+            looked: 0,
+            idle: false,
         };
         for (r, w) in c.nodes() {
             nodes.refs[nodes.count] = r;
@@ -198,6 +204,8 @@ struct SolverNode {
     inverse_mass: f64,
     /// Whether a contact of the node took a normal impulse (it ends with its displacement's velocity).
     pushed: bool,
+    /// The solver's update (see [`solve`]) that last changed the node (0: none yet).
+    changed: u32,
 }
 
 /// The nodes of the response's contacts, each once, side by side. The sweeps read and change this
@@ -256,6 +264,7 @@ impl SolverNodes {
             velocity: s.velocity_in_world[r.node],
             inverse_mass: inverse_mass_of(bodies, r),
             pushed: false,
+            changed: 0,
         });
         Some(slot)
     }
@@ -2085,11 +2094,23 @@ fn solve(
     (contacts, contact_nodes): (&mut [Contact], &mut [ContactNodes]),
     dt: f64,
 ) {
+    // Updates are numbered; a contact whose last update changed nothing, and none of whose nodes
+    // changed since, would change nothing again (the same inputs, to the bit): it is passed over.
+    let mut update = 0u32;
     for _ in 0..SOLVER_ITERATIONS {
         for (c, nodes) in contacts.iter_mut().zip(contact_nodes.iter_mut()) {
             if c.compliance <= 0.0 {
                 continue;
             }
+            if nodes.idle
+                && nodes.slots[..nodes.count]
+                    .iter()
+                    .all(|&k| nodes_of.nodes[k as usize].changed < nodes.looked)
+            {
+                continue;
+            }
+            update += 1;
+            nodes.looked = update;
             let relative = nodes.relative(&nodes_of.nodes, |n| n.motion);
             // Normal: close the gap down to the rest distance, no more (closer than that: stop
             // closing; the positions are parted afterwards).
@@ -2112,11 +2133,12 @@ fn solve(
             tangent *= (limit / size).min(1.0);
             let tangent_change = tangent - c.tangent_impulse;
             c.tangent_impulse = tangent;
+            nodes.idle = normal_change == 0.0 && tangent_change == Vec3::zeros();
             let impulse = c.normal * normal_change + tangent_change;
             if impulse == Vec3::zeros() {
                 continue;
             }
-            apply_impulse(nodes_of, nodes, &impulse, dt);
+            apply_impulse(nodes_of, nodes, &impulse, (update, dt));
         }
     }
 }
@@ -2126,7 +2148,12 @@ fn solve(
 /// the contact's. A node a tool moves takes no share (its motion is the tool's): the contact's
 /// force on it goes on to the tool.
 #[inline(always)]
-fn apply_impulse(nodes_of: &mut SolverNodes, nodes: &mut ContactNodes, impulse: &Vec3, dt: f64) {
+fn apply_impulse(
+    nodes_of: &mut SolverNodes,
+    nodes: &mut ContactNodes,
+    impulse: &Vec3,
+    (update, dt): (u32, f64),
+) {
     for i in 0..nodes.count {
         let (w, inverse_mass) = (nodes.weights[i], nodes.inverse_masses[i]);
         let slot = nodes.slots[i] as usize;
@@ -2137,6 +2164,7 @@ fn apply_impulse(nodes_of: &mut SolverNodes, nodes: &mut ContactNodes, impulse: 
             continue;
         }
         let dv = impulse * (w * inverse_mass);
+        n.changed = update;
         n.end += dv * dt;
         n.motion += dv;
         n.velocity += dv;
