@@ -900,6 +900,9 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     })
 }
 
+/// Sides of another body an edge is checked against at once (one AVX register of `f64`).
+const LANES_OF_SIDES: usize = 4;
+
 /// Edge `a` of a body at the end of the tick, with what the tests of its pairs share: taken once per
 /// edge rather than once per pair.
 struct EdgeAtEnd {
@@ -946,6 +949,49 @@ impl EdgeAtEnd {
 /// both (nearest at an end, it is a vertex's contact) and within the skin at the end of the tick.
 /// The normal is the line between the nearest points, turned to where `a` was at the start.
 ///
+/// What [`edge_edge_contact`] takes of the edge and a segment (b0, b1) before its divisions, in the
+/// operations and order of [`crate::collision::tool::segment_segment_closest`]: `e = |b1 − b0|²`,
+/// `f`, `b`, and the first parameter's numerator and denominator.
+struct NearestOnLines {
+    e: f64,
+    f: f64,
+    b: f64,
+    numerator: f64,
+    denominator: f64,
+}
+
+/// [`NearestOnLines`] of the edge and the segment (b0, b1), or `None` where the nearest points are
+/// at an end of either: a degenerate edge or segment, or the first parameter's numerator not
+/// between 0 and its denominator (the parameter would be clamped to an end; rounding is monotone,
+/// so the quotient is then ≤ 0 or ≥ 1).
+#[inline(always)]
+fn nearest_on_lines(edge: &EdgeAtEnd, b0: &Vec3, b1: &Vec3) -> Option<NearestOnLines> {
+    let d1 = edge.d1;
+    let d2 = b1 - b0;
+    let r = edge.a0 - b0;
+    let a = edge.length2;
+    let e = d2.norm_squared();
+    let tiny = f64::MIN_POSITIVE;
+    if a <= tiny || e <= tiny {
+        return None;
+    }
+    let f = d2.dot(&r);
+    let c = d1.dot(&r);
+    let b = d1.dot(&d2);
+    let denominator = a * e - b * b;
+    let numerator = b * f - c * e;
+    if !((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator)) {
+        return None;
+    }
+    Some(NearestOnLines {
+        e,
+        f,
+        b,
+        numerator,
+        denominator,
+    })
+}
+
 /// `b0`, `b1`: the ends of `b` at the end of the tick, whose box the caller found within the skin
 /// of the edge's ([`EdgeAtEnd::apart`]). The nearest points are those of
 /// [`crate::collision::tool::segment_segment_closest`], with its operations in its order (so its
@@ -960,25 +1006,13 @@ fn edge_edge_contact(
     (b0, b1): (Vec3, Vec3),
 ) -> Option<Contact> {
     let (a0, a1) = (edge.a0, edge.a1);
-    let d1 = edge.d1;
-    let d2 = b1 - b0;
-    let r = a0 - b0;
-    let a = edge.length2;
-    let e = d2.norm_squared();
-    let tiny = f64::MIN_POSITIVE;
-    // A degenerate edge: the nearest points are at an end of it.
-    if a <= tiny || e <= tiny {
-        return None;
-    }
-    let f = d2.dot(&r);
-    let c = d1.dot(&r);
-    let b_ = d1.dot(&d2);
-    let denominator = a * e - b_ * b_;
-    let numerator = b_ * f - c * e;
-    // The first parameter is clamped to an end unless 0 < numerator < denominator.
-    if !((denominator > 0.0) & (numerator > 0.0) & (numerator < denominator)) {
-        return None;
-    }
+    let NearestOnLines {
+        e,
+        f,
+        b: b_,
+        numerator,
+        denominator,
+    } = nearest_on_lines(edge, &b0, &b1)?;
     const INNER: f64 = 1e-6;
     let s = numerator / denominator;
     if !(INNER..=1.0 - INNER).contains(&s) {
@@ -1038,7 +1072,74 @@ fn edge_edge_contact(
 #[cfg(target_arch = "x86_64")]
 mod wide {
     use crate::Vec3;
+    use crate::dynamics::kernel::avx::{dot3, gather3, sub3};
     use std::arch::x86_64::*;
+
+    /// Four sides of another body against `edge`, with the scalar code's first checks and its
+    /// operations (so its answers): bit `l` of `within` when side `l` (ends `positions[b0[l]]`,
+    /// `positions[b1[l]]`) has its ends' box within the skin of the edge's (not
+    /// [`super::EdgeAtEnd::apart`]), of `through` when, besides, its nearest points with the edge
+    /// may be inside both (the checks of [`super::edge_edge_contact`] before its division: the
+    /// side not degenerate, the first parameter's numerator between 0 and its denominator); bit `l`
+    /// of `unordered` when a coordinate is not a number (the scalar code decides those: the vector
+    /// minimum does not skip it as `f64::min` does). The edge must not be degenerate.
+    ///
+    /// # Safety
+    /// The machine must have AVX; every node must be below `positions.len()`.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn edge_sides(
+        edge: &super::EdgeAtEnd,
+        positions: &[Vec3],
+        b0: [u32; 4],
+        b1: [u32; 4],
+    ) -> [u32; 3] {
+        let p = positions.as_ptr() as *const f64;
+        // SAFETY: indices below the slice's length, as the caller guarantees.
+        let (e0, e1) = unsafe { (gather3(p, &b0), gather3(p, &b1)) };
+        let splat = |v: &Vec3| [v.x, v.y, v.z].map(|x| _mm256_set1_pd(x));
+        let (a0, d1) = (splat(&edge.a0), splat(&edge.d1));
+        let (low_a, high_a) = (splat(&edge.low), splat(&edge.high));
+        let reach = _mm256_set1_pd(super::CONTACT_SKIN * (1.0 + super::EARLY_OUT_MARGIN));
+        let mut unordered = _mm256_setzero_pd();
+        let mut apart = _mm256_setzero_pd();
+        for k in 0..3 {
+            unordered = _mm256_or_pd(unordered, _mm256_cmp_pd::<_CMP_UNORD_Q>(e0[k], e1[k]));
+            let (low_b, high_b) = (_mm256_min_pd(e0[k], e1[k]), _mm256_max_pd(e0[k], e1[k]));
+            apart = _mm256_or_pd(
+                apart,
+                _mm256_or_pd(
+                    _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_sub_pd(low_b, high_a[k]), reach),
+                    _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_sub_pd(low_a[k], high_b), reach),
+                ),
+            );
+        }
+        let d2 = sub3(e1, e0);
+        let r = sub3(a0, e0);
+        let a = _mm256_set1_pd(edge.length2);
+        let e = dot3(d2, d2);
+        let f = dot3(d2, r);
+        let c = dot3(d1, r);
+        let b = dot3(d1, d2);
+        let denominator = _mm256_sub_pd(_mm256_mul_pd(a, e), _mm256_mul_pd(b, b));
+        let numerator = _mm256_sub_pd(_mm256_mul_pd(b, f), _mm256_mul_pd(c, e));
+        let zero = _mm256_setzero_pd();
+        let inside = _mm256_and_pd(
+            _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(e, _mm256_set1_pd(f64::MIN_POSITIVE)),
+                _mm256_cmp_pd::<_CMP_GT_OQ>(denominator, zero),
+            ),
+            _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(numerator, zero),
+                _mm256_cmp_pd::<_CMP_LT_OQ>(numerator, denominator),
+            ),
+        );
+        let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
+        [
+            _mm256_movemask_pd(within) as u32,
+            _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
+            _mm256_movemask_pd(unordered) as u32,
+        ]
+    }
 
     /// The coordinate of lane `l` of vector `v` of a block.
     const AXIS: [[usize; 4]; 3] = [[0, 1, 2, 0], [1, 2, 0, 1], [2, 0, 1, 2]];
@@ -1206,6 +1307,7 @@ pub fn respond_to_body_contacts(
     );
     scratch.now.begin(bodies);
     scratch.prepared = Prepared::Listed;
+    let simd = crate::dynamics::kernel::simd_available();
     let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
         if contacts.len() == contacts.capacity() {
             counters.contacts_dropped += 1;
@@ -1245,7 +1347,7 @@ pub fn respond_to_body_contacts(
                 let faces = &mut scratch.faces_near;
                 faces.clear();
                 while k < vertices.1 as usize && entries[k].feature[0] == v {
-                    let t = entries[k].triangle;
+                    let t = entries[k].other[0];
                     k += 1;
                     if !now.of(j, t as usize, &bodies[j]).overlaps(&swept) {
                         continue;
@@ -1294,21 +1396,64 @@ pub fn respond_to_body_contacts(
                 let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
                 let edge = EdgeAtEnd::of(bodies, a);
                 let mut best: Option<Contact> = None;
+                let first = k;
                 while k < edges.1 as usize && entries[k].feature == feature {
-                    let code = entries[k].triangle;
                     k += 1;
-                    let t = sj.triangles[(code / SIDES_PER_TRIANGLE) as usize];
-                    let side = (code % SIDES_PER_TRIANGLE) as usize;
-                    let b = sorted([
-                        NodeRef {
-                            body: j,
-                            node: t[side] as usize,
-                        },
-                        NodeRef {
-                            body: j,
-                            node: t[(side + 1) % 3] as usize,
-                        },
-                    ]);
+                }
+                let sides = &entries[first..k];
+                let positions = &sj.next_position_in_world;
+                // Four sides at a time through the first checks (the scalar code's operations,
+                // so the same answers): only the sides they let through take the whole test.
+                let mut m = 0;
+                #[cfg(target_arch = "x86_64")]
+                if simd && edge.length2 > f64::MIN_POSITIVE {
+                    while m + LANES_OF_SIDES <= sides.len() {
+                        let nodes = |e: usize| std::array::from_fn(|l| sides[m + l].other[e]);
+                        // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
+                        // are nodes of body j (listed from its triangles at its current topology).
+                        let [within, through, unordered] =
+                            unsafe { wide::edge_sides(&edge, positions, nodes(0), nodes(1)) };
+                        for l in 0..LANES_OF_SIDES {
+                            if unordered & (1 << l) != 0 {
+                                // A coordinate that is not a number: the scalar code's checks.
+                                let b = sides[m + l].other.map(|v| NodeRef {
+                                    body: j,
+                                    node: v as usize,
+                                });
+                                let ends = (positions[b[0].node], positions[b[1].node]);
+                                if !edge.apart(&ends.0, &ends.1) {
+                                    counters.candidate_pairs += 1;
+                                    if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                                        keep_nearer(&mut best, c);
+                                    }
+                                }
+                                continue;
+                            }
+                            if within & (1 << l) == 0 {
+                                continue;
+                            }
+                            counters.candidate_pairs += 1;
+                            if through & (1 << l) == 0 {
+                                continue;
+                            }
+                            let side = sides[m + l].other;
+                            let b = side.map(|v| NodeRef {
+                                body: j,
+                                node: v as usize,
+                            });
+                            let ends = (positions[b[0].node], positions[b[1].node]);
+                            if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                                keep_nearer(&mut best, c);
+                            }
+                        }
+                        m += LANES_OF_SIDES;
+                    }
+                }
+                for candidate in &sides[m..] {
+                    let b = candidate.other.map(|v| NodeRef {
+                        body: j,
+                        node: v as usize,
+                    });
                     let ends = (end_of(bodies, b[0]), end_of(bodies, b[1]));
                     if edge.apart(&ends.0, &ends.1) {
                         continue;
@@ -1460,13 +1605,10 @@ const LISTED_IN_PART: u8 = 3;
 #[derive(Clone, Copy, Debug, Default)]
 struct Candidate {
     feature: [u32; 2],
-    /// For a vertex, the triangle; for an edge, a side of a triangle (the triangle times
-    /// [`SIDES_PER_TRIANGLE`] plus the side), one it owns.
-    triangle: u32,
+    /// For a vertex, the triangle (and 0); for an edge, the two nodes of a side of a triangle that
+    /// owns it, the smaller first.
+    other: [u32; 2],
 }
-
-/// Stride of the sides of triangles in an edge's candidates.
-const SIDES_PER_TRIANGLE: u32 = 4;
 
 /// The candidate pairs of the response and of the net, kept from tick to tick (a Verlet list). Each
 /// body keeps the box of each node's trajectory when its pairs were last listed (its *reference*);
@@ -1916,7 +2058,13 @@ fn list_pair(
                 complete &= bvhs[j].query(&aabb, found);
                 for &triangle in found.iter() {
                     if part == 0 {
-                        complete &= push(out, Candidate { feature, triangle });
+                        complete &= push(
+                            out,
+                            Candidate {
+                                feature,
+                                other: [triangle, 0],
+                            },
+                        );
                         continue;
                     }
                     // An edge against the sides the triangle owns (each side of body j once) whose
@@ -1938,7 +2086,7 @@ fn list_pair(
                                 out,
                                 Candidate {
                                     feature,
-                                    triangle: SIDES_PER_TRIANGLE * triangle + side as u32,
+                                    other: [na.min(nb) as u32, na.max(nb) as u32],
                                 },
                             );
                         }
@@ -2279,6 +2427,72 @@ mod tests {
         let flat = [Vec3::new(0.0, 0.0, 1.0); 3];
         assert!(!triangles_apart(&flat, &flat, 0.0));
         assert!(triangles_apart(&a, &flat, 0.9) && !triangles_apart(&a, &flat, 1.1));
+    }
+
+    #[test]
+    fn four_sides_at_a_time_answer_the_first_checks_as_one_at_a_time() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !crate::dynamics::kernel::simd_available() {
+                eprintln!("no AVX on this machine: the scalar code alone runs");
+                return;
+            }
+            // Edges and sides within a few millimetres of each other (the skin is 1 mm), some
+            // degenerate, some parallel, one coordinate not a number now and then.
+            let (mut within, mut through, mut unordered) = (0, 0, 0);
+            for seed in 0..3000u64 {
+                let mut p = points(seed, 10);
+                for q in p.iter_mut() {
+                    *q *= 0.15;
+                }
+                match seed % 7 {
+                    0 => p[1] = p[0],
+                    1 => p[3] = p[2] + (p[1] - p[0]) * 0.5,
+                    2 => p[5].y = f64::NAN,
+                    _ => {}
+                }
+                let refs = [0, 1].map(|node| NodeRef { body: 0, node });
+                let edge = EdgeAtEnd {
+                    refs,
+                    a0: p[0],
+                    a1: p[1],
+                    d1: p[1] - p[0],
+                    length2: (p[1] - p[0]).norm_squared(),
+                    low: p[0].inf(&p[1]),
+                    high: p[0].sup(&p[1]),
+                };
+                if edge.length2.is_nan() || edge.length2 <= f64::MIN_POSITIVE {
+                    continue;
+                }
+                let positions = &p[2..];
+                let b0 = [0, 2, 4, 6];
+                let b1 = [1, 3, 5, 7];
+                // SAFETY: AVX checked above; indices below 8.
+                let masks = unsafe { wide::edge_sides(&edge, positions, b0, b1) };
+                for l in 0..4 {
+                    let (e0, e1) = (positions[b0[l] as usize], positions[b1[l] as usize]);
+                    let bit = 1 << l;
+                    if masks[2] & bit != 0 {
+                        assert!(
+                            e0.iter().chain(e1.iter()).any(|x| x.is_nan()),
+                            "seed {seed}"
+                        );
+                        unordered += 1;
+                        continue;
+                    }
+                    let near = !edge.apart(&e0, &e1);
+                    let inside = near && nearest_on_lines(&edge, &e0, &e1).is_some();
+                    assert_eq!(masks[0] & bit != 0, near, "seed {seed}, lane {l}");
+                    assert_eq!(masks[1] & bit != 0, inside, "seed {seed}, lane {l}");
+                    within += usize::from(near);
+                    through += usize::from(inside);
+                }
+            }
+            assert!(
+                within > 4000 && through > 2500 && unordered > 300,
+                "{within} within, {through} through, {unordered} not a number"
+            );
+        }
     }
 
     #[test]
