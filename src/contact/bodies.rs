@@ -682,9 +682,16 @@ pub fn resolve_body_collisions(
                 let (start, end) = scratch.cache.pair_ranges[pair];
                 let kept =
                     &scratch.cache.pairs[scratch.cache.current][start as usize..end as usize];
+                // (Consecutive pairs often share their first triangle: its box is taken once.)
+                let mut box_a = (u32::MAX, Aabb::empty());
                 for &(ta, tb) in kept {
-                    let box_a = scratch.now.of(i, ta as usize, &bodies[i]);
-                    if box_a.overlaps(&scratch.now.of(j, tb as usize, &bodies[j])) {
+                    if ta != box_a.0 {
+                        box_a = (ta, scratch.now.of(i, ta as usize, &bodies[i]));
+                    }
+                    if box_a
+                        .1
+                        .overlaps(&scratch.now.of(j, tb as usize, &bodies[j]))
+                    {
                         scratch.pairs.push((ta, tb));
                     }
                 }
