@@ -469,9 +469,8 @@ fn parting(bodies: &[Body], nodes: &[NodeRef; 4], vertex_face: bool) -> bool {
 }
 
 /// Whether triangles `sa` and `sb` (of two bodies, at the start of the tick) are farther apart
-/// than `most`: the
-/// corners of one all farther than `most` on one side of the other's plane (the plane then parts
-/// the triangles, and every point of one is farther than that from the other). Every vertex–face
+/// than `most`: the corners of one all farther than `most` on one side of the other's plane (the
+/// plane then parts the triangles, and every point of one is farther than that from the other). Every vertex–face
 /// and edge–edge pair of the two then starts farther apart than its nodes move, and
 /// [`test_primitive`] would turn each down: one test for the pair instead of one per primitive
 /// (a stack's resting triangles are mostly parted so). Compared in squares with the unnormalised
