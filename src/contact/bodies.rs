@@ -235,9 +235,10 @@ impl SolverNodes {
         }
     }
 
-    /// The place of node `r` in the lists, listing it if it is not yet; `None` when the lists are
-    /// full (they have room for every node of every body: not expected).
-    fn slot(&mut self, bodies: &[Body], r: NodeRef, dt: f64) -> Option<u32> {
+    /// The place of node `r` (of inverse mass `inverse_mass` for the response) in the lists, listing
+    /// it if it is not yet; `None` when the lists are full (they have room for every node of every
+    /// body: not expected).
+    fn slot(&mut self, bodies: &[Body], (r, inverse_mass): (NodeRef, f64), dt: f64) -> Option<u32> {
         let map = &mut self.slot_of[r.body];
         if map.len() <= r.node {
             // Within the room reserved for the body's most nodes.
@@ -262,7 +263,7 @@ impl SolverNodes {
             end,
             motion: (end - start) / dt,
             velocity: s.velocity_in_world[r.node],
-            inverse_mass: inverse_mass_of(bodies, r),
+            inverse_mass,
             pushed: false,
             changed: 0,
         });
@@ -1538,7 +1539,7 @@ pub fn respond_to_body_contacts(
         nodes.effective_mass = 1.0 / c.compliance;
         let mut listed = true;
         for i in 0..nodes.count {
-            match solver_nodes.slot(bodies, nodes.refs[i], dt) {
+            match solver_nodes.slot(bodies, (nodes.refs[i], nodes.inverse_masses[i]), dt) {
                 Some(slot) => nodes.slots[i] = slot,
                 None => listed = false,
             }
