@@ -2325,10 +2325,15 @@ fn solve(
             let slip = relative - c.normal * normal_speed;
             let mut tangent = c.tangent_impulse - slip * nodes.effective_mass;
             let limit = c.friction * c.normal_impulse;
-            let size = tangent.norm();
-            // Scaled back into the cone where it leaves it, with no branch: the factor is 1 inside
-            // (limit / size ≥ 1, or not a number: 0 / 0) and tangent × 1 is tangent to the bit.
-            tangent *= (limit / size).min(1.0);
+            // Scaled back into the cone where it leaves it: the factor min(limit / size, 1) is 1
+            // inside (limit / size ≥ 1, or not a number: 0 / 0), and tangent × 1 is tangent to the
+            // bit. Well inside (its square below the limit's by a relative room far above the
+            // rounding of the squares and the square root) the factor is 1 with neither the square
+            // root nor the division: a sticking contact's usual case, the same bits.
+            if tangent.norm_squared() > limit * limit * (1.0 - BOUND_ROUNDING) {
+                let size = tangent.norm();
+                tangent *= (limit / size).min(1.0);
+            }
             let tangent_change = tangent - c.tangent_impulse;
             c.tangent_impulse = tangent;
             nodes.idle = normal_change == 0.0 && tangent_change == Vec3::zeros();
