@@ -2327,10 +2327,13 @@ fn solve(
             let limit = c.friction * c.normal_impulse;
             // Scaled back into the cone where it leaves it: the factor min(limit / size, 1) is 1
             // inside (limit / size ≥ 1, or not a number: 0 / 0), and tangent × 1 is tangent to the
-            // bit. Well inside (its square below the limit's by a relative room far above the
-            // rounding of the squares and the square root) the factor is 1 with neither the square
-            // root nor the division: a sticking contact's usual case, the same bits.
-            if tangent.norm_squared() > limit * limit * (1.0 - BOUND_ROUNDING) {
+            // bit. Well inside (its square, a normal number, below the limit's by a relative room
+            // far above the rounding of the squares and the square root) the factor is 1 with
+            // neither the square root nor the division: a sticking contact's usual case, the same
+            // bits. (A square below the normal numbers may have lost the relative precision: the
+            // whole computation then.)
+            let square = tangent.norm_squared();
+            if !(square >= f64::MIN_POSITIVE && square <= limit * limit * (1.0 - BOUND_ROUNDING)) {
                 let size = tangent.norm();
                 tangent *= (limit / size).min(1.0);
             }
