@@ -2334,7 +2334,8 @@ fn solve(
             // whole computation then.)
             let square = tangent.norm_squared();
             if !(square >= f64::MIN_POSITIVE && square <= limit * limit * (1.0 - BOUND_ROUNDING)) {
-                let size = tangent.norm();
+                // (nalgebra's norm: the square root of this square.)
+                let size = square.sqrt();
                 tangent *= (limit / size).min(1.0);
             }
             let tangent_change = tangent - c.tangent_impulse;
