@@ -2333,7 +2333,15 @@ fn solve(
             // bits. (A square below the normal numbers may have lost the relative precision: the
             // whole computation then.)
             let square = tangent.norm_squared();
-            if !(square >= f64::MIN_POSITIVE && square <= limit * limit * (1.0 - BOUND_ROUNDING)) {
+            if limit == 0.0 && square > 0.0 {
+                // No normal impulse, no friction: for a size above zero (the square is, and is a
+                // number), limit / size is the limit itself, a zero of its sign, and so is its
+                // minimum with 1: the same product with neither the square root nor the division
+                // (a contact within the skin that does not press, most of a stack's updates).
+                tangent *= limit;
+            } else if !(square >= f64::MIN_POSITIVE
+                && square <= limit * limit * (1.0 - BOUND_ROUNDING))
+            {
                 // (nalgebra's norm: the square root of this square.)
                 let size = square.sqrt();
                 tangent *= (limit / size).min(1.0);
