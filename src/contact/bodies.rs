@@ -1051,8 +1051,21 @@ fn edge_edge_contact(
     b: [NodeRef; 2],
     (b0, b1): (Vec3, Vec3),
 ) -> Option<Contact> {
+    let near = nearest_within_skin(edge, &b0, &b1)?;
+    edge_edge_contact_at(bodies, edge, b, (b0, b1), near)
+}
+
+/// [`edge_edge_contact`] from the nearest points [`nearest_within_skin`] gives: their parameters
+/// `s` (edge) and `t` (side), the points and their distance.
+#[inline(always)]
+fn edge_edge_contact_at(
+    bodies: &[Body],
+    edge: &EdgeAtEnd,
+    b: [NodeRef; 2],
+    (b0, b1): (Vec3, Vec3),
+    (s, t, pa, pb, distance): (f64, f64, Vec3, Vec3, f64),
+) -> Option<Contact> {
     let (a0, a1) = (edge.a0, edge.a1);
-    let (s, t, pa, pb, distance) = nearest_within_skin(edge, &b0, &b1)?;
     let a = edge.refs;
     let start_a = start_of(bodies, a[0]) * (1.0 - s) + start_of(bodies, a[1]) * s;
     let start_b = start_of(bodies, b[0]) * (1.0 - t) + start_of(bodies, b[1]) * t;
@@ -1117,7 +1130,7 @@ mod wide {
         positions: &[Vec3],
         b0: [u32; 4],
         b1: [u32; 4],
-    ) -> [u32; 3] {
+    ) -> SidesAnswer {
         let p = positions.as_ptr() as *const f64;
         // SAFETY: indices below the slice's length, as the caller guarantees.
         let (e0, e1) = unsafe { (gather3(p, &b0), gather3(p, &b1)) };
@@ -1184,11 +1197,33 @@ mod wide {
             _mm256_and_pd(inner(s), inner(t)),
         );
         let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
-        [
-            _mm256_movemask_pd(within) as u32,
-            _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
-            _mm256_movemask_pd(unordered) as u32,
-        ]
+        let lanes = |x: __m256d| {
+            let mut out = [0.0; 4];
+            // SAFETY: four f64 into an array of four.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), x) };
+            out
+        };
+        SidesAnswer {
+            within: _mm256_movemask_pd(within) as u32,
+            through: _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
+            unordered: _mm256_movemask_pd(unordered) as u32,
+            s: lanes(s),
+            t: lanes(t),
+            distance: lanes(distance),
+        }
+    }
+
+    /// What [`edge_sides`] answers for four sides: bits `within`, `through` and `unordered` (lane
+    /// `l` at bit `l`), and per lane the nearest points' parameters on the edge (`s`) and on the
+    /// side (`t`) and their distance, those of [`super::nearest_within_skin`] to the bit where
+    /// `through` is set.
+    pub(super) struct SidesAnswer {
+        pub within: u32,
+        pub through: u32,
+        pub unordered: u32,
+        pub s: [f64; 4],
+        pub t: [f64; 4],
+        pub distance: [f64; 4],
     }
 
     /// The coordinate of lane `l` of vector `v` of a block.
@@ -1461,8 +1496,10 @@ pub fn respond_to_body_contacts(
                         let nodes = |e: usize| std::array::from_fn(|l| sides[m + l].other[e]);
                         // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
                         // are nodes of body j (listed from its triangles at its current topology).
-                        let [within, through, unordered] =
+                        let answer =
                             unsafe { wide::edge_sides(&edge, positions, nodes(0), nodes(1)) };
+                        let (within, through, unordered) =
+                            (answer.within, answer.through, answer.unordered);
                         for l in 0..LANES_OF_SIDES {
                             if unordered & (1 << l) != 0 {
                                 // A coordinate that is not a number: the scalar code's checks.
@@ -1492,7 +1529,17 @@ pub fn respond_to_body_contacts(
                                 node: v as usize,
                             });
                             let ends = (positions[b[0].node], positions[b[1].node]);
-                            if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                            // The nearest points as the scalar code finds them (its operations,
+                            // so its bits), from the lane's parameters and distance.
+                            let (s, t) = (answer.s[l], answer.t[l]);
+                            let near = (
+                                s,
+                                t,
+                                edge.a0 + (edge.a1 - edge.a0) * s,
+                                ends.0 + (ends.1 - ends.0) * t,
+                                answer.distance[l],
+                            );
+                            if let Some(c) = edge_edge_contact_at(bodies, &edge, b, ends, near) {
                                 keep_nearer(&mut best, c);
                             }
                         }
@@ -2497,7 +2544,7 @@ mod tests {
     }
 
     #[test]
-    fn four_sides_at_a_time_answer_the_first_checks_as_one_at_a_time() {
+    fn four_sides_at_a_time_answer_the_first_checks_and_nearest_points_as_one_at_a_time() {
         #[cfg(target_arch = "x86_64")]
         {
             if !crate::dynamics::kernel::simd_available() {
@@ -2535,7 +2582,8 @@ mod tests {
                 let b0 = [0, 2, 4, 6];
                 let b1 = [1, 3, 5, 7];
                 // SAFETY: AVX checked above; indices below 8.
-                let masks = unsafe { wide::edge_sides(&edge, positions, b0, b1) };
+                let answer = unsafe { wide::edge_sides(&edge, positions, b0, b1) };
+                let masks = [answer.within, answer.through, answer.unordered];
                 for l in 0..4 {
                     let (e0, e1) = (positions[b0[l] as usize], positions[b1[l] as usize]);
                     let bit = 1 << l;
@@ -2548,9 +2596,20 @@ mod tests {
                         continue;
                     }
                     let near = !edge.apart(&e0, &e1);
-                    let inside = near && nearest_within_skin(&edge, &e0, &e1).is_some();
+                    let nearest = nearest_within_skin(&edge, &e0, &e1).filter(|_| near);
+                    let inside = nearest.is_some();
                     assert_eq!(masks[0] & bit != 0, near, "seed {seed}, lane {l}");
                     assert_eq!(masks[1] & bit != 0, inside, "seed {seed}, lane {l}");
+                    // Where the side goes through, the lane's nearest points are the scalar
+                    // code's, to the bit (the contact is built from them).
+                    if let Some((s, t, _, _, distance)) = nearest {
+                        let bits = |x: [f64; 3]| x.map(f64::to_bits);
+                        assert_eq!(
+                            bits([answer.s[l], answer.t[l], answer.distance[l]]),
+                            bits([s, t, distance]),
+                            "seed {seed}, lane {l}"
+                        );
+                    }
                     within += usize::from(near);
                     through += usize::from(inside);
                 }
