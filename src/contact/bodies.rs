@@ -299,6 +299,8 @@ pub struct BodyContactScratch {
     /// A vertex's candidate faces with its distance to each (room for the most triangles a body
     /// may have).
     faces_near: Room<(f64, u32)>,
+    /// The faces whose boxes meet one vertex's, before their distances are taken.
+    faces_boxed: Room<u32>,
     settings: CcdSettings,
     /// Each body's swept bounds this tick, and whether they meet another body's.
     bounds: Room<Aabb>,
@@ -370,6 +372,7 @@ impl BodyContactScratch {
             found: Room::with_capacity(FOUND_CAPACITY),
             near_triangles: Room::with_capacity(most_triangles),
             faces_near: Room::with_capacity(most_triangles),
+            faces_boxed: Room::with_capacity(most_triangles),
             settings: CcdSettings::default(),
             bounds: Room::with_capacity(count),
             near: Room::with_capacity(count),
@@ -805,12 +808,7 @@ fn barycentric(q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
 }
 
 /// The face's corners at the end of the tick, its unnormalised normal and the vertex's end, unless
-/// the vertex ends farther than the skin in front of the face's plane: then neither near (the face
-/// is no nearer than its plane) nor crossed (it ends in front), whatever the closest point (the
-/// margin is far above the rounding of either measure). Compared in squares with the unnormalised
-/// normal, before its square root and division: a pair that this and the test on the unit normal
-/// would decide differently lies within rounding of the margin, beyond the skin, where the whole
-/// test turns it down as well.
+/// the vertex ends farther than the skin in front of the face's plane ([`in_reach`]).
 #[inline(always)]
 fn vertex_face_ahead(
     bodies: &[Body],
@@ -818,14 +816,26 @@ fn vertex_face_ahead(
     face: [NodeRef; 3],
 ) -> Option<([Vec3; 3], Vec3, Vec3)> {
     let end = face.map(|r| end_of(bodies, r));
-    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
     let pe = end_of(bodies, v);
+    let normal = in_reach(&pe, &end)?;
+    Some((end, normal, pe))
+}
+
+/// The unnormalised normal of the face with corners `end`, unless the point `pe` is farther than the
+/// skin in front of its plane: then neither near (the face is no nearer than its plane) nor crossed
+/// (it ends in front), whatever the closest point (the margin is far above the rounding of either
+/// measure). Compared in squares with the unnormalised normal, before its square root and
+/// division: a pair that this and the test on the unit normal would decide differently lies within
+/// rounding of the margin, beyond the skin, where the whole test turns it down as well.
+#[inline(always)]
+fn in_reach(pe: &Vec3, end: &[Vec3; 3]) -> Option<Vec3> {
+    let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
     let ahead = (pe - end[0]).dot(&normal);
     let reach = CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN);
     if ahead > 0.0 && ahead * ahead > reach * reach * normal.norm_squared() {
         return None;
     }
-    Some((end, normal, pe))
+    Some(normal)
 }
 
 /// Where vertex `v` stands against face `face` (of another body) at the end of the tick, when it
@@ -852,13 +862,18 @@ fn vertex_face_nearest(
     Some((end, face_normal, pe, q, distance))
 }
 
-/// The distance [`vertex_face_nearest`] gives, or `None` where its first test
-/// ([`vertex_face_ahead`]) turns the pair down; pairs it keeps that the whole test turns down are
-/// left to that test.
+/// The distance [`vertex_face_nearest`] gives, or `None` where its first test ([`in_reach`])
+/// turns the pair down; pairs it keeps that the whole test turns down are left to that test.
 #[inline(always)]
 fn vertex_face_distance(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Option<f64> {
-    let (end, _, pe) = vertex_face_ahead(bodies, v, face)?;
-    let q = closest_point_on_triangle(&pe, &end[0], &end[1], &end[2]);
+    face_distance(&end_of(bodies, v), &face.map(|r| end_of(bodies, r)))
+}
+
+/// [`vertex_face_distance`] of the point `pe` and the face with corners `end`.
+#[inline(always)]
+fn face_distance(pe: &Vec3, end: &[Vec3; 3]) -> Option<f64> {
+    in_reach(pe, end)?;
+    let q = closest_point_on_triangle(pe, &end[0], &end[1], &end[2]);
     Some((pe - q).norm())
 }
 
@@ -906,6 +921,9 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
         tangent_impulse: Vec3::zeros(),
     })
 }
+
+/// Faces of another body a vertex is checked against at once (one AVX register of `f64`).
+const LANES_OF_FACES: usize = 4;
 
 /// Sides of another body an edge is checked against at once (one AVX register of `f64`).
 const LANES_OF_SIDES: usize = 4;
@@ -1226,6 +1244,150 @@ mod wide {
         pub distance: [f64; 4],
     }
 
+    /// Four faces of another body against the vertex that ends the tick at `pe`, with the scalar
+    /// code's operations (so its bits): lane `l` is the face with corners `positions[corners[c][l]]`
+    /// (c = 0, 1, 2). Answers each lane's distance ([`super::face_distance`]'s: the closest point
+    /// of [`crate::collision::tool::closest_point_on_triangle`], its regions taken as masks in the
+    /// order of its tests, the first that holds chosen), bit `l` of `kept` where that is `Some`
+    /// (the vertex within reach of the face's plane, [`super::in_reach`]), and of `scalar` where
+    /// the scalar code must answer: a coordinate that is not a number (which of two such a vector
+    /// operation passes on may differ), or a degenerate triangle (the scalar code's nearest corner).
+    ///
+    /// # Safety
+    /// The machine must have AVX; every corner must be below `positions.len()`.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn vertex_faces(
+        pe: &Vec3,
+        positions: &[Vec3],
+        corners: [[u32; 4]; 3],
+    ) -> ([f64; 4], u32, u32) {
+        let ptr = positions.as_ptr() as *const f64;
+        // SAFETY: indices below the slice's length, as the caller guarantees.
+        let [a, b, c] = corners.map(|k| unsafe { gather3(ptr, &k) });
+        let p = [pe.x, pe.y, pe.z].map(|x| _mm256_set1_pd(x));
+        let zero = _mm256_setzero_pd();
+        let unord = |x, y| _mm256_cmp_pd::<_CMP_UNORD_Q>(x, y);
+        let le = |x, y| _mm256_cmp_pd::<_CMP_LE_OQ>(x, y);
+        let ge = |x, y| _mm256_cmp_pd::<_CMP_GE_OQ>(x, y);
+        let gt = |x, y| _mm256_cmp_pd::<_CMP_GT_OQ>(x, y);
+        let and = |x, y| _mm256_and_pd(x, y);
+        let mut unordered = zero;
+        for k in 0..3 {
+            unordered = _mm256_or_pd(
+                unordered,
+                _mm256_or_pd(
+                    _mm256_or_pd(unord(a[k], b[k]), unord(c[k], p[k])),
+                    unord(c[k], c[k]),
+                ),
+            );
+        }
+        // The reach of the face's plane (`in_reach`): the normal as nalgebra's cross product.
+        let ab = sub3(b, a);
+        let ac = sub3(c, a);
+        let cross = |x: [__m256d; 3], y: [__m256d; 3]| {
+            let m = |i: usize, j: usize| _mm256_mul_pd(x[i], y[j]);
+            [
+                _mm256_sub_pd(m(1, 2), m(2, 1)),
+                _mm256_sub_pd(m(2, 0), m(0, 2)),
+                _mm256_sub_pd(m(0, 1), m(1, 0)),
+            ]
+        };
+        let normal = cross(ab, ac);
+        let ap = sub3(p, a);
+        let ahead = dot3(ap, normal);
+        let reach = super::CONTACT_SKIN * (1.0 + super::EARLY_OUT_MARGIN);
+        let beyond = and(
+            gt(ahead, zero),
+            gt(
+                _mm256_mul_pd(ahead, ahead),
+                _mm256_mul_pd(_mm256_set1_pd(reach * reach), dot3(normal, normal)),
+            ),
+        );
+        // The closest point's regions, in the scalar code's order.
+        let d1 = dot3(ab, ap);
+        let d2 = dot3(ac, ap);
+        let at_a = and(le(d1, zero), le(d2, zero));
+        let bp = sub3(p, b);
+        let d3 = dot3(ab, bp);
+        let d4 = dot3(ac, bp);
+        let at_b = and(ge(d3, zero), le(d4, d3));
+        let vc = _mm256_sub_pd(_mm256_mul_pd(d1, d4), _mm256_mul_pd(d3, d2));
+        let on_ab = and(and(le(vc, zero), ge(d1, zero)), le(d3, zero));
+        let cp = sub3(p, c);
+        let d5 = dot3(ab, cp);
+        let d6 = dot3(ac, cp);
+        let at_c = and(ge(d6, zero), le(d5, d6));
+        let vb = _mm256_sub_pd(_mm256_mul_pd(d5, d2), _mm256_mul_pd(d1, d6));
+        let on_ac = and(and(le(vb, zero), ge(d2, zero)), le(d6, zero));
+        let va = _mm256_sub_pd(_mm256_mul_pd(d3, d6), _mm256_mul_pd(d5, d4));
+        let (d43, d56) = (_mm256_sub_pd(d4, d3), _mm256_sub_pd(d5, d6));
+        let on_bc = and(and(le(va, zero), ge(d43, zero)), ge(d56, zero));
+        let along = |o: [__m256d; 3], d: [__m256d; 3], t: __m256d| -> [__m256d; 3] {
+            std::array::from_fn(|k| _mm256_add_pd(o[k], _mm256_mul_pd(d[k], t)))
+        };
+        // Each lane's region, the first whose test holds; inside the face where none does.
+        let not = |x| _mm256_andnot_pd(x, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)));
+        let mut taken = at_a;
+        let mut first = |mask| {
+            let only = _mm256_andnot_pd(taken, mask);
+            taken = _mm256_or_pd(taken, mask);
+            only
+        };
+        let (at_b, on_ab, at_c, on_ac, on_bc) = (
+            first(at_b),
+            first(on_ab),
+            first(at_c),
+            first(on_ac),
+            first(on_bc),
+        );
+        let inside = not(taken);
+        // One division for the point on a side (its parameter) or inside (the first barycentric
+        // weight), with each region's numerator and denominator; a second for the other weight.
+        let denominator = _mm256_add_pd(_mm256_add_pd(va, vb), vc);
+        let pick = |inner, ab_, ac_, bc_| {
+            _mm256_blendv_pd(
+                _mm256_blendv_pd(_mm256_blendv_pd(inner, ab_, on_ab), ac_, on_ac),
+                bc_,
+                on_bc,
+            )
+        };
+        let numerator = pick(vb, d1, d2, d43);
+        let below = pick(
+            denominator,
+            _mm256_sub_pd(d1, d3),
+            _mm256_sub_pd(d2, d6),
+            _mm256_add_pd(d43, d56),
+        );
+        let t = _mm256_div_pd(numerator, below);
+        let w = _mm256_div_pd(vc, denominator);
+        let bc = sub3(c, b);
+        let origin: [__m256d; 3] = std::array::from_fn(|k| _mm256_blendv_pd(a[k], b[k], on_bc));
+        let direction: [__m256d; 3] = std::array::from_fn(|k| {
+            _mm256_blendv_pd(_mm256_blendv_pd(ab[k], ac[k], on_ac), bc[k], on_bc)
+        });
+        let on_line = along(origin, direction, t);
+        let within = along(on_line, ac, w);
+        let q: [__m256d; 3] = std::array::from_fn(|k| {
+            let q = _mm256_blendv_pd(on_line[k], within[k], inside);
+            let q = _mm256_blendv_pd(q, a[k], at_a);
+            let q = _mm256_blendv_pd(q, b[k], at_b);
+            _mm256_blendv_pd(q, c[k], at_c)
+        });
+        let magnitude = _mm256_andnot_pd(_mm256_set1_pd(-0.0), denominator);
+        let degenerate = and(inside, le(magnitude, _mm256_set1_pd(f64::MIN_POSITIVE)));
+        let gap = sub3(p, q);
+        let distance = _mm256_sqrt_pd(dot3(gap, gap));
+        let scalar = _mm256_or_pd(unordered, degenerate);
+        let mut out = [0.0; 4];
+        // SAFETY: four f64 into an array of four.
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), distance) };
+        (
+            out,
+            (!_mm256_movemask_pd(beyond) & 0b1111) as u32,
+            _mm256_movemask_pd(scalar) as u32,
+        )
+    }
+
     /// The coordinate of lane `l` of vector `v` of a block.
     const AXIS: [[usize; 4]; 3] = [[0, 1, 2, 0], [1, 2, 0, 1], [2, 0, 1, 2]];
 
@@ -1431,6 +1593,8 @@ pub fn respond_to_body_contacts(
                 // contact that testing them all and keeping the nearest would keep.
                 let faces = &mut scratch.faces_near;
                 faces.clear();
+                let boxed = &mut scratch.faces_boxed;
+                boxed.clear();
                 while k < vertices.1 as usize && entries[k].feature[0] == v {
                     let t = entries[k].other[0];
                     k += 1;
@@ -1438,15 +1602,56 @@ pub fn respond_to_body_contacts(
                         continue;
                     }
                     counters.candidate_pairs += 1;
-                    let face = face_of(sj, j, t as usize);
-                    if let Some(distance) = vertex_face_distance(bodies, vertex, face) {
-                        // Room for every triangle of the body (see `new`).
+                    // Room for every triangle of the body (see `new`), each listed once.
+                    if boxed.len() < boxed.capacity() {
+                        boxed.push(t);
+                    } else {
+                        counters.overflows += 1;
+                    }
+                }
+                let mut keep = |faces: &mut Room<(f64, u32)>, distance: Option<f64>, t: u32| {
+                    if let Some(distance) = distance {
                         if faces.len() < faces.capacity() {
                             faces.push((distance, t));
                         } else {
                             counters.overflows += 1;
                         }
                     }
+                };
+                // Four faces at a time (the scalar code's operations, so its distances); a last
+                // batch of fewer repeats its last face in the other lanes, whose answers are not
+                // read.
+                let mut m = 0;
+                #[cfg(target_arch = "x86_64")]
+                if simd {
+                    let pe = end_of(bodies, vertex);
+                    let positions = &sj.next_position_in_world;
+                    while m < boxed.len() {
+                        let lanes = (boxed.len() - m).min(LANES_OF_FACES);
+                        let corners = std::array::from_fn(|c| {
+                            std::array::from_fn(|l| {
+                                sj.triangles[boxed[m + l.min(lanes - 1)] as usize][c]
+                            })
+                        });
+                        // SAFETY: the machine has AVX (checked when `simd` was set); the corners
+                        // are nodes of body j (its triangles at its current topology).
+                        let (distances, kept, scalar) =
+                            unsafe { wide::vertex_faces(&pe, positions, corners) };
+                        for (l, &distance) in distances.iter().enumerate().take(lanes) {
+                            let t = boxed[m + l];
+                            let distance = if scalar & (1 << l) != 0 {
+                                vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize))
+                            } else {
+                                (kept & (1 << l) != 0).then_some(distance)
+                            };
+                            keep(faces, distance, t);
+                        }
+                        m += lanes;
+                    }
+                }
+                for &t in &boxed[m..] {
+                    let distance = vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize));
+                    keep(faces, distance, t);
                 }
                 while !faces.is_empty() {
                     let mut nearest = 0;
@@ -2617,6 +2822,86 @@ mod tests {
             assert!(
                 within > 4000 && through > 1000 && unordered > 300,
                 "{within} within, {through} through, {unordered} not a number"
+            );
+        }
+    }
+
+    #[test]
+    fn four_faces_at_a_time_give_the_distances_of_one_at_a_time() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !crate::dynamics::kernel::simd_available() {
+                eprintln!("no AVX on this machine: the scalar code alone runs");
+                return;
+            }
+            // A vertex and four triangles within a few centimetres (every region of the closest
+            // point), some degenerate, a corner not a number now and then, and the vertex just
+            // above, on or below the last face half the time (within the skin, on either side).
+            let (mut kept, mut turned_down, mut scalar) = (0, 0, 0);
+            let mut at_corner = 0;
+            for seed in 0..4000u64 {
+                let mut p = points(seed, 13);
+                match seed % 8 {
+                    0 => p[1] = p[0],
+                    1 => p[5] = p[3] + (p[4] - p[3]) * 0.5,
+                    2 => p[7].z = f64::NAN,
+                    3 => p[12] = p[9],
+                    _ => {}
+                }
+                if seed % 2 == 1 {
+                    let normal = (p[10] - p[9]).cross(&(p[11] - p[9])).normalize();
+                    let offset = (seed % 7) as f64 * 3e-4 - 9e-4;
+                    p[12] = p[9] + (p[10] - p[9]) * 0.3 + (p[11] - p[9]) * 0.4 + normal * offset;
+                }
+                let corners = [[0, 3, 6, 9], [1, 4, 7, 10], [2, 5, 8, 11]];
+                // SAFETY: AVX checked above; indices below 13.
+                let (distances, kept_bits, scalar_bits) =
+                    unsafe { wide::vertex_faces(&p[12], &p, corners) };
+                for l in 0..4 {
+                    let end = [0, 1, 2].map(|c| p[corners[c][l] as usize]);
+                    let bit = 1 << l;
+                    if scalar_bits & bit != 0 {
+                        // Left to the scalar code: a coordinate not a number, or a triangle
+                        // with no area.
+                        let normal = (end[1] - end[0]).cross(&(end[2] - end[0]));
+                        assert!(
+                            end.iter()
+                                .chain([&p[12]])
+                                .any(|q| q.iter().any(|x| x.is_nan()))
+                                || normal.norm() < 1e-12,
+                            "seed {seed}, lane {l}"
+                        );
+                        scalar += 1;
+                        continue;
+                    }
+                    assert!(
+                        !end.iter().any(|q| q.iter().any(|x| x.is_nan())),
+                        "seed {seed}, lane {l}: a corner not a number is the scalar code's"
+                    );
+                    let expected = face_distance(&p[12], &end);
+                    assert_eq!(
+                        kept_bits & bit != 0,
+                        expected.is_some(),
+                        "seed {seed}, lane {l}"
+                    );
+                    match expected {
+                        Some(d) => {
+                            assert_eq!(
+                                distances[l].to_bits(),
+                                d.to_bits(),
+                                "seed {seed}, lane {l}"
+                            );
+                            kept += 1;
+                            at_corner += usize::from(end.iter().any(|c| (p[12] - c).norm() == d));
+                        }
+                        None => turned_down += 1,
+                    }
+                }
+            }
+            assert!(
+                kept > 6000 && turned_down > 3000 && scalar >= 500 && at_corner > 1000,
+                "{kept} kept, {turned_down} turned down, {scalar} left to the scalar code, \
+                 {at_corner} nearest a corner"
             );
         }
     }
