@@ -1697,15 +1697,20 @@ pub fn respond_to_body_contacts(
                 let mut m = 0;
                 #[cfg(target_arch = "x86_64")]
                 if simd && edge.length2 > f64::MIN_POSITIVE {
-                    while m + LANES_OF_SIDES <= sides.len() {
-                        let nodes = |e: usize| std::array::from_fn(|l| sides[m + l].other[e]);
+                    while m < sides.len() {
+                        // The last batch may hold fewer sides: its other lanes repeat the last
+                        // side and their answers are not read.
+                        let lanes = (sides.len() - m).min(LANES_OF_SIDES);
+                        let nodes = |e: usize| {
+                            std::array::from_fn(|l| sides[m + l.min(lanes - 1)].other[e])
+                        };
                         // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
                         // are nodes of body j (listed from its triangles at its current topology).
                         let answer =
                             unsafe { wide::edge_sides(&edge, positions, nodes(0), nodes(1)) };
                         let (within, through, unordered) =
                             (answer.within, answer.through, answer.unordered);
-                        for l in 0..LANES_OF_SIDES {
+                        for l in 0..lanes {
                             if unordered & (1 << l) != 0 {
                                 // A coordinate that is not a number: the scalar code's checks.
                                 let b = sides[m + l].other.map(|v| NodeRef {
@@ -1748,7 +1753,7 @@ pub fn respond_to_body_contacts(
                                 keep_nearer(&mut best, c);
                             }
                         }
-                        m += LANES_OF_SIDES;
+                        m += lanes;
                     }
                 }
                 for candidate in &sides[m..] {
