@@ -1126,7 +1126,7 @@ fn edge_edge_contact_at(
 #[cfg(target_arch = "x86_64")]
 mod wide {
     use crate::Vec3;
-    use crate::dynamics::kernel::avx::{dot3, gather3, sub3};
+    use crate::dynamics::kernel::avx::{dot3, gather3, lanes, sub3};
     use std::arch::x86_64::*;
 
     /// Four sides of another body against `edge`, with the scalar code's first checks and its
@@ -1215,12 +1215,6 @@ mod wide {
             _mm256_and_pd(inner(s), inner(t)),
         );
         let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
-        let lanes = |x: __m256d| {
-            let mut out = [0.0; 4];
-            // SAFETY: four f64 into an array of four.
-            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), x) };
-            out
-        };
         SidesAnswer {
             within: _mm256_movemask_pd(within) as u32,
             through: _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
@@ -1275,10 +1269,7 @@ mod wide {
         for k in 0..3 {
             unordered = _mm256_or_pd(
                 unordered,
-                _mm256_or_pd(
-                    _mm256_or_pd(unord(a[k], b[k]), unord(c[k], p[k])),
-                    unord(c[k], c[k]),
-                ),
+                _mm256_or_pd(unord(a[k], b[k]), unord(c[k], p[k])),
             );
         }
         // The reach of the face's plane (`in_reach`): the normal as nalgebra's cross product.
@@ -1378,11 +1369,8 @@ mod wide {
         let gap = sub3(p, q);
         let distance = _mm256_sqrt_pd(dot3(gap, gap));
         let scalar = _mm256_or_pd(unordered, degenerate);
-        let mut out = [0.0; 4];
-        // SAFETY: four f64 into an array of four.
-        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), distance) };
         (
-            out,
+            lanes(distance),
             (!_mm256_movemask_pd(beyond) & 0b1111) as u32,
             _mm256_movemask_pd(scalar) as u32,
         )
@@ -1429,12 +1417,6 @@ mod wide {
         if _mm256_movemask_pd(unordered) != 0 {
             return None;
         }
-        let lanes = |x: __m256d| {
-            let mut out = [0.0; 4];
-            // SAFETY: four f64 into an array of four.
-            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), x) };
-            out
-        };
         let (mut lower, mut upper, mut largest) =
             ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], [0.0f64; 3]);
         for v in 0..3 {

@@ -1050,17 +1050,11 @@ pub(crate) mod avx {
             }
             i += LANES;
         }
-        let lanes = |v: __m256d| {
-            let mut out = [0.0; LANES];
-            // SAFETY: four f64 into four f64.
-            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
-            out
-        };
         sums.kinetic = lanes(kinetic);
         sums.elastic = lanes(elastic);
         sums.potential = lanes(potential);
-        sums.reaction = reaction.map(lanes);
-        sums.torque = torque_sum.map(lanes);
+        sums.reaction = reaction.map(|r| lanes(r));
+        sums.torque = torque_sum.map(|t| lanes(t));
         for i in full..n {
             super::node_block::<1>(f, nodes, pass, sums, i);
         }
@@ -1102,6 +1096,16 @@ pub(crate) mod avx {
             _mm256_sub_pd(b[1], a[1]),
             _mm256_sub_pd(b[2], a[2]),
         ]
+    }
+
+    /// The four lanes of `v`, in order.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub(crate) fn lanes(v: __m256d) -> [f64; LANES] {
+        let mut out = [0.0; LANES];
+        // SAFETY: four f64 into an array of four.
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
+        out
     }
 
     /// `(x₀y₀ + x₁y₁) + x₂y₂` per lane (the scalar path's order).
