@@ -278,6 +278,21 @@ impl Aabb {
             & (self.max.z >= other.min.z)
     }
 
+    /// How far apart the two boxes lie along the axis that parts them most: positive when they do
+    /// not meet, zero or less when they overlap, not a number when a coordinate is not.
+    pub fn gap(&self, other: &Aabb) -> f64 {
+        let mut gap = f64::NEG_INFINITY;
+        for k in 0..3 {
+            for d in [other.min[k] - self.max[k], self.min[k] - other.max[k]] {
+                if d.is_nan() {
+                    return f64::NAN;
+                }
+                gap = gap.max(d);
+            }
+        }
+        gap
+    }
+
     /// True when the segment from `p` to `q` may meet the box (its own box overlaps).
     pub fn overlaps_segment(&self, p: &Vec3, q: &Vec3) -> bool {
         let lo = p.inf(q);

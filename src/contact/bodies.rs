@@ -61,6 +61,17 @@ const PAIR_CAPACITY: usize = 1 << 16;
 /// Relative room between the square of a lower bound of a distance (a point's to a plane, or
 /// between two lines) and the square of the distance, far above the rounding of either.
 const BOUND_ROUNDING: f64 = 1e-6;
+/// Room (m) left for rounding when a gap between reference boxes is weighed against how far the
+/// nodes left them (differences of coordinates: far above their rounding for bodies within
+/// kilometres of the origin).
+const GAP_ROUNDING: f64 = 1e-7;
+/// Half-width (m), per axis, of the region a node's trajectory may wander over from its box in its
+/// body's anchor (see `CandidateCache::anchor`) before the anchor is taken again: small beside the
+/// gaps between the triangles of bodies at rest on each other (a tenth of a millimetre and more),
+/// large beside what a resting node moves in a tick.
+const ANCHOR_SLACK: f64 = 2.5e-5;
+/// Ticks of the net an anchor must have held before the gaps are weighed against it.
+const ANCHOR_HELD: u64 = 8;
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
 /// Fraction of the time of impact a colliding node is allowed to travel.
@@ -682,21 +693,48 @@ pub fn resolve_body_collisions(
                 // The kept pairs whose boxes meet this round: the pairs, in the order, of a
                 // traversal of the hierarchies refitted to this round's trajectories.
                 scratch.pairs.clear();
-                let (start, end) = scratch.cache.pair_ranges[pair];
-                let kept =
-                    &scratch.cache.pairs[scratch.cache.current][start as usize..end as usize];
+                let cache = &mut scratch.cache;
+                let (start, end) = cache.pair_ranges[pair];
+                let kept = &cache.pairs[cache.current][start as usize..end as usize];
+                // The two bodies' triangle boxes of this tick lie within their anchor boxes grown
+                // by their excursions from them: when the least gap of the pairs' anchor boxes
+                // exceeds the two excursions (with room for rounding), no boxes meet.
+                let net_tick = cache.net_ticks;
+                let anchored = [i, j].map(|k| {
+                    cache.anchor[k].is_some() && cache.anchor_excursion[k] <= ANCHOR_SLACK
+                });
+                let anchored_at = [i, j].map(|k| cache.anchored_at[k]);
+                let least = &mut cache.least_gaps[pair];
+                if anchored == [true; 2]
+                    && anchored_at == [least.1; 2]
+                    && least.0
+                        > cache.anchor_excursion[i] + cache.anchor_excursion[j] + GAP_ROUNDING
+                {
+                    continue;
+                }
+                // Both anchors taken this tick: this round's boxes are the anchor boxes, and the
+                // least gap is found with them.
+                let fresh = round == 0 && anchored == [true; 2] && anchored_at == [net_tick; 2];
+                let (mut least_now, mut unordered) = (f64::INFINITY, false);
                 // (Consecutive pairs often share their first triangle: its box is taken once.)
                 let mut box_a = (u32::MAX, Aabb::empty());
                 for &(ta, tb) in kept {
                     if ta != box_a.0 {
                         box_a = (ta, scratch.now.of(i, ta as usize, &bodies[i]));
                     }
-                    if box_a
-                        .1
-                        .overlaps(&scratch.now.of(j, tb as usize, &bodies[j]))
-                    {
+                    let box_b = scratch.now.of(j, tb as usize, &bodies[j]);
+                    if fresh {
+                        let gap = box_a.1.gap(&box_b);
+                        unordered |= gap.is_nan();
+                        least_now = least_now.min(gap);
+                    }
+                    if box_a.1.overlaps(&box_b) {
                         scratch.pairs.push((ta, tb));
                     }
+                }
+                if fresh {
+                    // (A gap that is not a number leaves the least one unknown.)
+                    *least = (if unordered { f64::NAN } else { least_now }, net_tick);
                 }
                 counters.candidate_pairs += scratch.pairs.len() as u32;
                 // What the two bodies' nodes move over the tick at most: primitives that start
@@ -1464,6 +1502,68 @@ mod wide {
         }
         _mm256_movemask_pd(inside) == 0b1111
     }
+
+    /// How far the points of `start` and `end` lie outside the box from `lower` to `upper` of the
+    /// same node at most (0 when inside), for each of the `R` sets of boxes, as the scalar code
+    /// finds it (the same differences; the maximum is exact in any order); infinite where a
+    /// difference is not a number. Each slice holds the same multiple of four points.
+    ///
+    /// # Safety
+    /// The machine must have AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn excursions<const R: usize>(
+        [start, end]: [&[Vec3]; 2],
+        boxes: [[&[Vec3]; 2]; R],
+    ) -> [f64; R] {
+        let mut n = start.len().min(end.len());
+        for [lower, upper] in boxes {
+            n = n.min(lower.len()).min(upper.len());
+        }
+        let n = n / 4 * 4;
+        let (p, q) = (start.as_ptr() as *const f64, end.as_ptr() as *const f64);
+        let corners = boxes.map(|pair| pair.map(|x| x.as_ptr() as *const f64));
+        let mut most = [_mm256_setzero_pd(); R];
+        let mut unordered = [_mm256_setzero_pd(); R];
+        for block in 0..n / 4 {
+            for v in 0..3 {
+                // SAFETY: as in `sweep`, 4 f64 at 12 block + 4 v < 3 n of each slice.
+                let (p, q) = unsafe {
+                    (
+                        _mm256_loadu_pd(p.add(12 * block + 4 * v)),
+                        _mm256_loadu_pd(q.add(12 * block + 4 * v)),
+                    )
+                };
+                for r in 0..R {
+                    // SAFETY: as above.
+                    let [lo, hi] =
+                        corners[r].map(|x| unsafe { _mm256_loadu_pd(x.add(12 * block + 4 * v)) });
+                    let (below_p, above_p) = (_mm256_sub_pd(lo, p), _mm256_sub_pd(p, hi));
+                    let (below_q, above_q) = (_mm256_sub_pd(lo, q), _mm256_sub_pd(q, hi));
+                    unordered[r] = _mm256_or_pd(
+                        unordered[r],
+                        _mm256_or_pd(
+                            _mm256_cmp_pd::<_CMP_UNORD_Q>(below_p, above_p),
+                            _mm256_cmp_pd::<_CMP_UNORD_Q>(below_q, above_q),
+                        ),
+                    );
+                    most[r] = _mm256_max_pd(
+                        most[r],
+                        _mm256_max_pd(
+                            _mm256_max_pd(below_p, above_p),
+                            _mm256_max_pd(below_q, above_q),
+                        ),
+                    );
+                }
+            }
+        }
+        std::array::from_fn(|r| {
+            if _mm256_movemask_pd(unordered[r]) != 0 {
+                f64::INFINITY
+            } else {
+                lanes(most[r]).into_iter().fold(0.0, f64::max)
+            }
+        })
+    }
 }
 
 /// Inverse mass of a node for the contact response: 0 for a node a tool moves.
@@ -1923,6 +2023,20 @@ struct CandidateCache {
     /// Per body, the slack of its reference (m): [`CANDIDATE_SLACK`], or 0 for a body that left it
     /// on several ticks in a row.
     slack: Vec<f64>,
+    /// Per body, the boxes of its nodes' trajectories on a recent tick of the net (its *anchor*;
+    /// the near bodies' are taken together, see [`Self::list`]), with the topology version and
+    /// node count it holds for (`None`: none, or no room), the net's tick it was taken on, and
+    /// how far this tick's trajectories leave it (as of the net's listing; infinite when
+    /// unknown, or once it was left by more than [`ANCHOR_SLACK`], which `anchor_left` marks). The net weighs its pairs of bodies' least gaps against it ([`Self::least_gaps`]).
+    anchor_lower: Vec<Room<Vec3>>,
+    anchor_upper: Vec<Room<Vec3>>,
+    anchor: Vec<Option<(u64, usize)>>,
+    anchored_at: Vec<u64>,
+    anchor_excursion: Vec<f64>,
+    anchor_left: Vec<bool>,
+    /// The net's ticks (its listings) so far, and the last the anchors were taken on.
+    net_ticks: u64,
+    anchor_tick: Option<u64>,
     /// Per body, whether its pairs are to be listed again this tick, and on how many ticks in a row
     /// (up to this one) they were.
     renewed: Vec<bool>,
@@ -1934,6 +2048,13 @@ struct CandidateCache {
     listed: Vec<u8>,
     ranges: Vec<[(u32, u32); 2]>,
     pair_ranges: Vec<(u32, u32)>,
+    /// Per pair of bodies (i < j), the least gap between the boxes of its triangle pairs (the
+    /// net's) in the two bodies' anchors, and the net's tick both anchors were taken on (not a
+    /// number when its pairs were listed since). A triangle's box of a later tick lies within its
+    /// anchor box grown by its body's excursion from the anchor: while neither anchor is taken
+    /// again, a pair of bodies whose least gap exceeds their two excursions has no triangle boxes
+    /// that meet, and the net passes it over.
+    least_gaps: Vec<(f64, u64)>,
     /// The lists in use (grouped by pair, then by feature) and the ones a new listing is written
     /// to: the response's candidates, and the net's triangle pairs (whose boxes may meet, in the
     /// order of the hierarchies' traversal).
@@ -1958,11 +2079,20 @@ impl CandidateCache {
             upper: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             reference: vec![None; slots],
             slack: vec![0.0; slots],
+            anchor_lower: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
+            anchor_upper: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
+            anchor: vec![None; slots],
+            anchored_at: vec![0; slots],
+            anchor_excursion: vec![f64::INFINITY; slots],
+            anchor_left: vec![false; slots],
+            net_ticks: 0,
+            anchor_tick: None,
             renewed: vec![false; slots],
             streak: vec![0; slots],
             listed: vec![NOT_LISTED; slots * slots],
             ranges: vec![[(0, 0); 2]; slots * slots],
             pair_ranges: vec![(0, 0); slots * slots],
+            least_gaps: vec![(f64::NAN, 0); slots * slots],
             entries: [
                 Room::with_capacity(CANDIDATE_CAPACITY),
                 Room::with_capacity(CANDIDATE_CAPACITY),
@@ -1993,6 +2123,24 @@ impl CandidateCache {
         )
     }
 
+    /// Whether boxes taken at `held` (a topology version and node count) are for `body`'s topology.
+    fn holds_for(held: Option<(u64, usize)>, body: &Body) -> bool {
+        held == Some((body.topology_version, body.surface.position_in_world.len()))
+    }
+
+    /// Body `k`'s trajectories this tick as its anchor (none when there is no room for them).
+    fn anchor(&mut self, k: usize, body: &Body) {
+        self.anchored_at[k] = self.net_ticks;
+        self.anchor_left[k] = false;
+        self.anchor[k] =
+            boxes_of_trajectories(body, (&mut self.anchor_lower[k], &mut self.anchor_upper[k]));
+        self.anchor_excursion[k] = if self.anchor[k].is_some() {
+            0.0
+        } else {
+            f64::INFINITY
+        };
+    }
+
     /// Body `k`'s trajectories this tick as its reference (none when there is no room for them).
     fn renew(&mut self, k: usize, body: &Body) {
         let streak = self.streak[k];
@@ -2001,20 +2149,7 @@ impl CandidateCache {
         } else {
             CANDIDATE_SLACK
         };
-        let s = &body.surface;
-        let n = s.position_in_world.len();
-        let (lower, upper) = (&mut self.lower[k], &mut self.upper[k]);
-        lower.clear();
-        upper.clear();
-        if n > lower.capacity() || n > upper.capacity() {
-            self.reference[k] = None;
-            return;
-        }
-        for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
-            lower.push(p.inf(q));
-            upper.push(p.sup(q));
-        }
-        self.reference[k] = Some((body.topology_version, n));
+        self.reference[k] = boxes_of_trajectories(body, (&mut self.lower[k], &mut self.upper[k]));
     }
 
     /// Brings the lists up to date for the pairs of bodies near each other (`bounds` meet):
@@ -2035,9 +2170,33 @@ impl CandidateCache {
     ) {
         let n = bodies.len().min(self.slots);
         let slots = self.slots;
+        if !first_of_tick {
+            self.net_ticks += 1;
+        }
         for k in 0..n {
             self.renewed[k] = near[k]
                 && (!self.keep || self.reference[k].is_none() || !self.holds(k, &bodies[k]));
+            // How far the net's anchor was left (unknown for a body not near another, none of
+            // whose pairs is used this tick; an anchor once left by more than its slack is not
+            // weighed again until it is taken again).
+            self.anchor_excursion[k] = f64::INFINITY;
+            let body = &bodies[k];
+            if near[k]
+                && !first_of_tick
+                && !self.anchor_left[k]
+                && Self::holds_for(self.anchor[k], body)
+            {
+                let anchor = [&self.anchor_lower[k][..], &self.anchor_upper[k][..]];
+                self.anchor_excursion[k] = excursions(
+                    [
+                        &body.surface.position_in_world,
+                        &body.surface.next_position_in_world,
+                    ],
+                    [anchor],
+                    crate::dynamics::kernel::simd_available(),
+                )[0];
+                self.anchor_left[k] = self.anchor_excursion[k] > ANCHOR_SLACK;
+            }
             if first_of_tick {
                 self.streak[k] = if self.renewed[k] {
                     self.streak[k].saturating_add(1)
@@ -2047,6 +2206,27 @@ impl CandidateCache {
             }
             if self.renewed[k] {
                 self.renew(k, &bodies[k]);
+            }
+        }
+        // The net's anchors, all near bodies' on the same tick (a pair's least gap is found with
+        // both anchors): taken again when one is not for its body's topology or was left by more
+        // than its slack, at most every [`ANCHOR_HELD`] ticks (bodies that move on have no use for
+        // them; an anchor left by more is still sound, only looser).
+        if !first_of_tick {
+            let wanted = (0..n).any(|k| {
+                near[k]
+                    && (!Self::holds_for(self.anchor[k], &bodies[k])
+                        || self.anchor_excursion[k] > ANCHOR_SLACK)
+            });
+            if wanted
+                && self
+                    .anchor_tick
+                    .is_none_or(|tick| self.net_ticks - tick >= ANCHOR_HELD)
+            {
+                self.anchor_tick = Some(self.net_ticks);
+                for k in (0..n).filter(|&k| near[k]) {
+                    self.anchor(k, &bodies[k]);
+                }
             }
         }
         let pairs_of = |i: usize, j: usize| {
@@ -2157,6 +2337,7 @@ impl CandidateCache {
                     complete &= left[i].overlapping_pairs(&right[0], next_pairs);
                 }
                 self.pair_ranges[pair] = (start, next_pairs.len() as u32);
+                self.least_gaps[pair] = (f64::NAN, 0);
                 counters.listed_pairs += 1;
                 // Bodies with no reference are listed again next tick.
                 self.listed[pair] = if !complete {
@@ -2246,6 +2427,27 @@ impl TriangleBoxes {
             None => compute(),
         }
     }
+}
+
+/// Writes the boxes of `body`'s nodes' trajectories this tick into `lower` and `upper`, and returns
+/// the topology version and node count they hold for (`None`, and nothing written, when there is no
+/// room for them).
+fn boxes_of_trajectories(
+    body: &Body,
+    (lower, upper): (&mut Room<Vec3>, &mut Room<Vec3>),
+) -> Option<(u64, usize)> {
+    let s = &body.surface;
+    let n = s.position_in_world.len();
+    lower.clear();
+    upper.clear();
+    if n > lower.capacity() || n > upper.capacity() {
+        return None;
+    }
+    for (p, q) in s.position_in_world.iter().zip(&s.next_position_in_world) {
+        lower.push(p.inf(q));
+        upper.push(p.sup(q));
+    }
+    Some((body.topology_version, n))
 }
 
 /// A body's boxes: the corners of its reference (`lower`, `upper`) when it has one, otherwise this
@@ -2474,6 +2676,56 @@ fn within_slack(
         }
     }
     inside
+}
+
+/// How far the points of `start` and `end` lie outside their node's box from `lower` to `upper` at
+/// most, along any axis, for each of the `R` sets of boxes (0 when every point is inside; infinite
+/// where a difference is not a number, or the slices differ in length): four nodes at a time with
+/// AVX when `simd` (the machine must have it), the rest one at a time, the same answer.
+fn excursions<const R: usize>(
+    [start, end]: [&[Vec3]; 2],
+    boxes: [[&[Vec3]; 2]; R],
+    simd: bool,
+) -> [f64; R] {
+    let n = start.len();
+    if end.len() != n || boxes.iter().any(|[lo, hi]| lo.len() != n || hi.len() != n) {
+        return [f64::INFINITY; R];
+    }
+    let mut done = 0;
+    let mut most = [0.0f64; R];
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        done = n - n % 4;
+        // SAFETY: the machine has AVX; every slice holds n ≥ done points.
+        most = unsafe {
+            wide::excursions(
+                [&start[..done], &end[..done]],
+                boxes.map(|pair| pair.map(|x| &x[..done])),
+            )
+        };
+    }
+    for (r, [lower, upper]) in boxes.into_iter().enumerate() {
+        let mut unordered = false;
+        for (((p, q), lo), hi) in start[done..]
+            .iter()
+            .zip(&end[done..])
+            .zip(&lower[done..])
+            .zip(&upper[done..])
+        {
+            for d in 0..3 {
+                for x in [lo[d] - p[d], p[d] - hi[d], lo[d] - q[d], q[d] - hi[d]] {
+                    unordered |= x.is_nan();
+                    most[r] = most[r].max(x);
+                }
+            }
+        }
+        if unordered {
+            most[r] = f64::INFINITY;
+        }
+    }
+    most
 }
 
 /// The box of the points of `start` and `end` (a body's nodes over the tick) and a bound above
@@ -2894,7 +3146,7 @@ mod tests {
     }
 
     #[test]
-    fn the_sweep_and_the_slack_check_answer_four_nodes_at_a_time_as_one_at_a_time() {
+    fn the_sweep_and_the_excursion_answer_four_nodes_at_a_time_as_one_at_a_time() {
         if !crate::dynamics::kernel::simd_available() {
             eprintln!("no AVX on this machine: only the scalar path runs");
             return;
@@ -2931,9 +3183,43 @@ mod tests {
                             u[k % 3] -= slack + 1e-6;
                         }
                     }
-                    let ask = |simd| within_slack([&start, &end], [&lower, &upper], slack, simd);
-                    assert_eq!(ask(true), ask(false), "{n} {seed} {slack}");
-                    checked[ask(false) as usize] += 1;
+                    let ask = |simd| excursions([&start, &end], [[&lower, &upper]], simd)[0];
+                    assert_eq!(
+                        ask(true).to_bits(),
+                        ask(false).to_bits(),
+                        "{n} {seed} {slack}"
+                    );
+                    let e = ask(false);
+                    // The answer is the largest distance outside a box: every point is within it,
+                    // and a point leaves its box by that much (none for a point that is not a
+                    // number, infinite then).
+                    let outside = |p: &Vec3, lo: &Vec3, hi: &Vec3| {
+                        (0..3).fold(0.0f64, |m, d| m.max(lo[d] - p[d]).max(p[d] - hi[d]))
+                    };
+                    let most = start
+                        .iter()
+                        .zip(&end)
+                        .zip(lower.iter().zip(&upper))
+                        .map(|((p, q), (lo, hi))| outside(p, lo, hi).max(outside(q, lo, hi)))
+                        .fold(0.0f64, f64::max);
+                    if seed == 7 && n > 0 {
+                        assert_eq!(e, f64::INFINITY);
+                    } else {
+                        assert_eq!(e.to_bits(), most.to_bits(), "{n} {seed} {slack}");
+                    }
+                    checked[(e <= slack) as usize] += 1;
+                    // Two sets of boxes in one pass: each set's answer alone (the second set,
+                    // the start points themselves, is left by the displacements).
+                    let both = |simd| {
+                        excursions([&start, &end], [[&lower, &upper], [&start, &start]], simd)
+                    };
+                    let alone = excursions([&start, &end], [[&start, &start]], false)[0];
+                    for simd in [true, false] {
+                        let [first, second] = both(simd);
+                        assert_eq!(first.to_bits(), e.to_bits(), "{n} {seed} {slack}");
+                        assert_eq!(second.to_bits(), alone.to_bits(), "{n} {seed} {slack}");
+                    }
+                    assert!(n == 0 || alone > 0.0, "{n} {seed}");
                 }
             }
         }
