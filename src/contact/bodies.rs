@@ -61,16 +61,17 @@ const PAIR_CAPACITY: usize = 1 << 16;
 /// Relative room between the square of a lower bound of a distance (a point's to a plane, or
 /// between two lines) and the square of the distance, far above the rounding of either.
 const BOUND_ROUNDING: f64 = 1e-6;
-/// Room (m) left for rounding when a gap between reference boxes is weighed against how far the
-/// nodes left them (differences of coordinates: far above their rounding for bodies within
-/// kilometres of the origin).
+/// Room (m) left for rounding when a gap between anchor boxes is weighed against how far the nodes
+/// left them (differences of coordinates: far above their rounding for bodies within kilometres of
+/// the origin).
 const GAP_ROUNDING: f64 = 1e-7;
 /// Half-width (m), per axis, of the region a node's trajectory may wander over from its box in its
 /// body's anchor (see `CandidateCache::anchor`) before the anchor is taken again: small beside the
 /// gaps between the triangles of bodies at rest on each other (a tenth of a millimetre and more),
 /// large beside what a resting node moves in a tick.
 const ANCHOR_SLACK: f64 = 2.5e-5;
-/// Ticks of the net an anchor must have held before the gaps are weighed against it.
+/// Least ticks of the net between two takings of the anchors (see `CandidateCache::anchor`):
+/// bodies that keep moving take them, and find their least gaps, once in so many ticks.
 const ANCHOR_HELD: u64 = 8;
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
@@ -401,7 +402,9 @@ impl BodyContactScratch {
 
 impl BodyContactScratch {
     /// Keeps the response's candidate pairs from tick to tick while the bodies stay within their
-    /// slack (`true`, the default), or lists them again every tick.
+    /// slack (`true`, the default), or lists them again every tick (then the net's least gaps,
+    /// forgotten at every listing, never pass a pair of bodies over either: the same bits, from
+    /// the whole work of every tick).
     pub fn set_candidate_cache(&mut self, keep: bool) {
         self.cache.keep = keep;
     }
