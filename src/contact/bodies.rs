@@ -1507,65 +1507,48 @@ mod wide {
     }
 
     /// How far the points of `start` and `end` lie outside the box from `lower` to `upper` of the
-    /// same node at most (0 when inside), for each of the `R` sets of boxes, as the scalar code
-    /// finds it (the same differences; the maximum is exact in any order); infinite where a
-    /// difference is not a number. Each slice holds the same multiple of four points.
+    /// same node at most (0 when inside), as the scalar code finds it (the same differences; the
+    /// maximum is exact in any order); infinite where a difference is not a number. Each slice
+    /// holds the same multiple of four points.
     ///
     /// # Safety
     /// The machine must have AVX.
     #[target_feature(enable = "avx")]
-    pub(super) unsafe fn excursions<const R: usize>(
+    pub(super) unsafe fn excursion(
         [start, end]: [&[Vec3]; 2],
-        boxes: [[&[Vec3]; 2]; R],
-    ) -> [f64; R] {
-        let mut n = start.len().min(end.len());
-        for [lower, upper] in boxes {
-            n = n.min(lower.len()).min(upper.len());
-        }
-        let n = n / 4 * 4;
-        let (p, q) = (start.as_ptr() as *const f64, end.as_ptr() as *const f64);
-        let corners = boxes.map(|pair| pair.map(|x| x.as_ptr() as *const f64));
-        let mut most = [_mm256_setzero_pd(); R];
-        let mut unordered = [_mm256_setzero_pd(); R];
+        [lower, upper]: [&[Vec3]; 2],
+    ) -> f64 {
+        let n = start.len().min(end.len()).min(lower.len()).min(upper.len()) / 4 * 4;
+        let pointers = [start, end, lower, upper].map(|x| x.as_ptr() as *const f64);
+        let mut most = _mm256_setzero_pd();
+        let mut unordered = _mm256_setzero_pd();
         for block in 0..n / 4 {
             for v in 0..3 {
                 // SAFETY: as in `sweep`, 4 f64 at 12 block + 4 v < 3 n of each slice.
-                let (p, q) = unsafe {
-                    (
-                        _mm256_loadu_pd(p.add(12 * block + 4 * v)),
-                        _mm256_loadu_pd(q.add(12 * block + 4 * v)),
-                    )
-                };
-                for r in 0..R {
-                    // SAFETY: as above.
-                    let [lo, hi] =
-                        corners[r].map(|x| unsafe { _mm256_loadu_pd(x.add(12 * block + 4 * v)) });
-                    let (below_p, above_p) = (_mm256_sub_pd(lo, p), _mm256_sub_pd(p, hi));
-                    let (below_q, above_q) = (_mm256_sub_pd(lo, q), _mm256_sub_pd(q, hi));
-                    unordered[r] = _mm256_or_pd(
-                        unordered[r],
-                        _mm256_or_pd(
-                            _mm256_cmp_pd::<_CMP_UNORD_Q>(below_p, above_p),
-                            _mm256_cmp_pd::<_CMP_UNORD_Q>(below_q, above_q),
-                        ),
-                    );
-                    most[r] = _mm256_max_pd(
-                        most[r],
-                        _mm256_max_pd(
-                            _mm256_max_pd(below_p, above_p),
-                            _mm256_max_pd(below_q, above_q),
-                        ),
-                    );
-                }
+                let [p, q, lo, hi] =
+                    pointers.map(|x| unsafe { _mm256_loadu_pd(x.add(12 * block + 4 * v)) });
+                let (below_p, above_p) = (_mm256_sub_pd(lo, p), _mm256_sub_pd(p, hi));
+                let (below_q, above_q) = (_mm256_sub_pd(lo, q), _mm256_sub_pd(q, hi));
+                unordered = _mm256_or_pd(
+                    unordered,
+                    _mm256_or_pd(
+                        _mm256_cmp_pd::<_CMP_UNORD_Q>(below_p, above_p),
+                        _mm256_cmp_pd::<_CMP_UNORD_Q>(below_q, above_q),
+                    ),
+                );
+                most = _mm256_max_pd(
+                    most,
+                    _mm256_max_pd(
+                        _mm256_max_pd(below_p, above_p),
+                        _mm256_max_pd(below_q, above_q),
+                    ),
+                );
             }
         }
-        std::array::from_fn(|r| {
-            if _mm256_movemask_pd(unordered[r]) != 0 {
-                f64::INFINITY
-            } else {
-                lanes(most[r]).into_iter().fold(0.0, f64::max)
-            }
-        })
+        if _mm256_movemask_pd(unordered) != 0 {
+            return f64::INFINITY;
+        }
+        lanes(most).into_iter().fold(0.0, f64::max)
     }
 }
 
@@ -2030,7 +2013,8 @@ struct CandidateCache {
     /// the near bodies' are taken together, see [`Self::list`]), with the topology version and
     /// node count it holds for (`None`: none, or no room), the net's tick it was taken on, and
     /// how far this tick's trajectories leave it (as of the net's listing; infinite when
-    /// unknown, or once it was left by more than [`ANCHOR_SLACK`], which `anchor_left` marks). The net weighs its pairs of bodies' least gaps against it ([`Self::least_gaps`]).
+    /// unknown, or once it was left by more than [`ANCHOR_SLACK`], which `anchor_left` marks).
+    /// The net weighs its pairs of bodies' least gaps against it ([`Self::least_gaps`]).
     anchor_lower: Vec<Room<Vec3>>,
     anchor_upper: Vec<Room<Vec3>>,
     anchor: Vec<Option<(u64, usize)>>,
@@ -2190,14 +2174,14 @@ impl CandidateCache {
                 && Self::holds_for(self.anchor[k], body)
             {
                 let anchor = [&self.anchor_lower[k][..], &self.anchor_upper[k][..]];
-                self.anchor_excursion[k] = excursions(
+                self.anchor_excursion[k] = excursion(
                     [
                         &body.surface.position_in_world,
                         &body.surface.next_position_in_world,
                     ],
-                    [anchor],
+                    anchor,
                     crate::dynamics::kernel::simd_available(),
-                )[0];
+                );
                 self.anchor_left[k] = self.anchor_excursion[k] > ANCHOR_SLACK;
             }
             if first_of_tick {
@@ -2682,53 +2666,44 @@ fn within_slack(
 }
 
 /// How far the points of `start` and `end` lie outside their node's box from `lower` to `upper` at
-/// most, along any axis, for each of the `R` sets of boxes (0 when every point is inside; infinite
-/// where a difference is not a number, or the slices differ in length): four nodes at a time with
-/// AVX when `simd` (the machine must have it), the rest one at a time, the same answer.
-fn excursions<const R: usize>(
-    [start, end]: [&[Vec3]; 2],
-    boxes: [[&[Vec3]; 2]; R],
-    simd: bool,
-) -> [f64; R] {
+/// most, along any axis (0 when every point is inside; infinite where a difference is not a
+/// number, or the slices differ in length): four nodes at a time with AVX when `simd` (the machine
+/// must have it), the rest one at a time, the same answer.
+fn excursion([start, end]: [&[Vec3]; 2], [lower, upper]: [&[Vec3]; 2], simd: bool) -> f64 {
     let n = start.len();
-    if end.len() != n || boxes.iter().any(|[lo, hi]| lo.len() != n || hi.len() != n) {
-        return [f64::INFINITY; R];
+    if end.len() != n || lower.len() != n || upper.len() != n {
+        return f64::INFINITY;
     }
     let mut done = 0;
-    let mut most = [0.0f64; R];
+    let mut most = 0.0f64;
     #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
     #[cfg(target_arch = "x86_64")]
     if simd {
         done = n - n % 4;
-        // SAFETY: the machine has AVX; every slice holds n ≥ done points.
+        // SAFETY: the machine has AVX; the four slices hold n ≥ done points each.
         most = unsafe {
-            wide::excursions(
+            wide::excursion(
                 [&start[..done], &end[..done]],
-                boxes.map(|pair| pair.map(|x| &x[..done])),
+                [&lower[..done], &upper[..done]],
             )
         };
     }
-    for (r, [lower, upper]) in boxes.into_iter().enumerate() {
-        let mut unordered = false;
-        for (((p, q), lo), hi) in start[done..]
-            .iter()
-            .zip(&end[done..])
-            .zip(&lower[done..])
-            .zip(&upper[done..])
-        {
-            for d in 0..3 {
-                for x in [lo[d] - p[d], p[d] - hi[d], lo[d] - q[d], q[d] - hi[d]] {
-                    unordered |= x.is_nan();
-                    most[r] = most[r].max(x);
-                }
+    let mut unordered = false;
+    for (((p, q), lo), hi) in start[done..]
+        .iter()
+        .zip(&end[done..])
+        .zip(&lower[done..])
+        .zip(&upper[done..])
+    {
+        for d in 0..3 {
+            for x in [lo[d] - p[d], p[d] - hi[d], lo[d] - q[d], q[d] - hi[d]] {
+                unordered |= x.is_nan();
+                most = most.max(x);
             }
         }
-        if unordered {
-            most[r] = f64::INFINITY;
-        }
     }
-    most
+    if unordered { f64::INFINITY } else { most }
 }
 
 /// The box of the points of `start` and `end` (a body's nodes over the tick) and a bound above
@@ -3186,7 +3161,7 @@ mod tests {
                             u[k % 3] -= slack + 1e-6;
                         }
                     }
-                    let ask = |simd| excursions([&start, &end], [[&lower, &upper]], simd)[0];
+                    let ask = |simd| excursion([&start, &end], [&lower, &upper], simd);
                     assert_eq!(
                         ask(true).to_bits(),
                         ask(false).to_bits(),
@@ -3211,18 +3186,6 @@ mod tests {
                         assert_eq!(e.to_bits(), most.to_bits(), "{n} {seed} {slack}");
                     }
                     checked[(e <= slack) as usize] += 1;
-                    // Two sets of boxes in one pass: each set's answer alone (the second set,
-                    // the start points themselves, is left by the displacements).
-                    let both = |simd| {
-                        excursions([&start, &end], [[&lower, &upper], [&start, &start]], simd)
-                    };
-                    let alone = excursions([&start, &end], [[&start, &start]], false)[0];
-                    for simd in [true, false] {
-                        let [first, second] = both(simd);
-                        assert_eq!(first.to_bits(), e.to_bits(), "{n} {seed} {slack}");
-                        assert_eq!(second.to_bits(), alone.to_bits(), "{n} {seed} {slack}");
-                    }
-                    assert!(n == 0 || alone > 0.0, "{n} {seed}");
                 }
             }
         }
