@@ -703,9 +703,8 @@ pub fn resolve_body_collisions(
                 // by their excursions from them: when the least gap of the pairs' anchor boxes
                 // exceeds the two excursions (with room for rounding), no boxes meet.
                 let net_tick = cache.net_ticks;
-                let anchored = [i, j].map(|k| {
-                    cache.anchor[k].is_some() && cache.anchor_excursion[k] <= ANCHOR_SLACK
-                });
+                // (An excursion is infinite for a body with no anchor that holds.)
+                let anchored = [i, j].map(|k| cache.anchor_excursion[k] <= ANCHOR_SLACK);
                 let anchored_at = [i, j].map(|k| cache.anchored_at[k]);
                 let least = &mut cache.least_gaps[pair];
                 if anchored == [true; 2]
@@ -2098,8 +2097,7 @@ impl CandidateCache {
     /// reference box (and the topology is the reference's).
     fn holds(&self, k: usize, body: &Body) -> bool {
         let s = &body.surface;
-        let n = s.position_in_world.len();
-        if self.reference[k] != Some((body.topology_version, n)) {
+        if !Self::holds_for(self.reference[k], body) {
             return false;
         }
         within_slack(
@@ -2200,11 +2198,8 @@ impl CandidateCache {
         // than its slack, at most every [`ANCHOR_HELD`] ticks (bodies that move on have no use for
         // them; an anchor left by more is still sound, only looser).
         if !first_of_tick {
-            let wanted = (0..n).any(|k| {
-                near[k]
-                    && (!Self::holds_for(self.anchor[k], &bodies[k])
-                        || self.anchor_excursion[k] > ANCHOR_SLACK)
-            });
+            // (Infinite for an anchor that does not hold for the body's topology, or none.)
+            let wanted = (0..n).any(|k| near[k] && self.anchor_excursion[k] > ANCHOR_SLACK);
             if wanted
                 && self
                     .anchor_tick
