@@ -75,6 +75,11 @@ const ANCHOR_SLACK: f64 = 2.5e-5;
 const ANCHOR_HELD: u64 = 8;
 /// Rounds of stop-short before the remaining collisions are frozen.
 const ROUNDS: usize = 4;
+/// Most rounds of freezing after them: freezing a pair's nodes at their start changes the
+/// trajectories of the triangles they belong to, which may meet another body's anew (its nodes
+/// moved); each such round freezes those too, until a round finds nothing (every node frozen, the
+/// previous tick's state, is apart) or this bound is reached (counted in `frozen` as ever).
+const FREEZE_ROUNDS: usize = 16;
 /// Fraction of the time of impact a colliding node is allowed to travel.
 const STOP_SHORT: f64 = 0.9;
 
@@ -340,6 +345,19 @@ pub struct BodyContactScratch {
     /// energy the body may gain from the others (a stack's weight compressing the organ below),
     /// which the divergence guard adds to its budget.
     pub work: Vec<f64>,
+    /// Last tick's contacts, in their order, with their accumulated impulses (see [`warm_start`]).
+    warm: Room<WarmContact>,
+    /// The bodies' topology versions when `warm` was kept.
+    warm_versions: Room<u64>,
+}
+
+/// A contact of last tick and its accumulated impulses (see [`warm_start`]).
+#[derive(Clone, Copy, Debug)]
+struct WarmContact {
+    a: [NodeRef; 2],
+    b: [NodeRef; 3],
+    normal_impulse: f64,
+    tangent_impulse: Vec3,
 }
 
 impl BodyContactScratch {
@@ -396,6 +414,8 @@ impl BodyContactScratch {
             answered,
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
+            warm: Room::with_capacity(CONTACT_CAPACITY),
+            warm_versions: Room::with_capacity(count),
         }
     }
 }
@@ -631,8 +651,8 @@ pub fn resolve_body_collisions(
         return counters;
     }
     let mut skipping = false;
-    for round in 0..=ROUNDS {
-        let freeze = round == ROUNDS;
+    for round in 0..=ROUNDS + FREEZE_ROUNDS {
+        let freeze = round >= ROUNDS;
         // The bounds of the first round hold for the later ones: stopping short only shortens
         // trajectories.
         if round == 0 {
@@ -1585,6 +1605,7 @@ pub fn respond_to_body_contacts(
     scratch.work.resize(bodies.len(), 0.0);
     scratch.prepared = Prepared::NoneNear;
     if bodies.len() < 2 {
+        scratch.warm.clear();
         return counters;
     }
     scratch.contacts.clear();
@@ -1598,6 +1619,7 @@ pub fn respond_to_body_contacts(
         scratch.near[k] = false;
     }
     if !mark_near(group, &scratch.bounds, &mut scratch.near) {
+        scratch.warm.clear();
         return counters;
     }
     // Each vertex of a body near another once against that body's faces, each edge once against
@@ -1878,6 +1900,19 @@ pub fn respond_to_body_contacts(
     }
     scratch.contacts.truncate(kept);
     counters.contacts = scratch.contacts.len() as u32;
+    // Warm start: a contact that was there last tick, between the same nodes of bodies whose
+    // topology did not change, starts from last tick's impulses (its tangential one on this
+    // tick's tangent plane, within the cone): a resting stack's solve then starts where the last
+    // one ended instead of from nothing, so a few sweeps carry a heavy organ's weight through a
+    // light one's nodes (without it, its unfinished solves leave gaps below the rest distance
+    // each tick, and the parting, which knows no friction, lets the heavy organ creep off).
+    warm_start(
+        (&mut scratch.contacts, &mut scratch.contact_nodes),
+        (&scratch.warm, &scratch.warm_versions),
+        bodies,
+        solver_nodes,
+        dt,
+    );
     // The displacements over the tick (where the nodes end: no approach past the rest distance,
     // no slip where friction holds; the impulses change the end velocities alike). Each impulse
     // changes the pair's momentum by equal and opposite amounts.
@@ -1946,7 +1981,67 @@ pub fn respond_to_body_contacts(
         *largest = largest.max(motion);
     }
     solver_nodes.write_back(bodies);
+    // This tick's impulses for the next tick's warm start, in the contacts' order.
+    scratch.warm.clear();
+    for c in scratch.contacts.iter() {
+        scratch.warm.push(WarmContact {
+            a: c.a,
+            b: c.b,
+            normal_impulse: c.normal_impulse,
+            tangent_impulse: c.tangent_impulse,
+        });
+    }
+    scratch.warm_versions.clear();
+    scratch
+        .warm_versions
+        .extend(bodies.iter().map(|b| b.topology_version));
     counters
+}
+
+/// How far ahead of the last match [`warm_start`] looks for a contact of last tick.
+const WARM_WINDOW: usize = 16;
+
+/// Starts each contact that was in last tick's list `warm` (the same nodes on both sides, of bodies
+/// whose topology versions are those of `versions`) from last tick's accumulated impulses, applied
+/// to its nodes: the normal one as it was, the tangential one on this tick's tangent plane and
+/// within the friction cone of the normal one. The contacts that stay come in the same relative
+/// order from tick to tick (the order of the candidate lists), so last tick's list is walked
+/// alongside this one, each contact looked for among the next [`WARM_WINDOW`] entries after the
+/// last match (a contact not found there starts from nothing, as every contact did before).
+fn warm_start(
+    (contacts, contact_nodes): (&mut [Contact], &mut [ContactNodes]),
+    (warm, versions): (&[WarmContact], &[u64]),
+    bodies: &[Body],
+    solver_nodes: &mut SolverNodes,
+    dt: f64,
+) {
+    let unchanged = |k: usize| versions.get(k) == Some(&bodies[k].topology_version);
+    let mut next = 0;
+    for (c, nodes) in contacts.iter_mut().zip(contact_nodes.iter_mut()) {
+        if c.compliance <= 0.0 || !unchanged(c.a[0].body) || !unchanged(c.b[0].body) {
+            continue;
+        }
+        let ahead = &warm[next.min(warm.len())..(next + WARM_WINDOW).min(warm.len())];
+        let Some(found) = ahead.iter().position(|w| w.a == c.a && w.b == c.b) else {
+            continue;
+        };
+        let last = ahead[found];
+        next += found + 1;
+        let normal_impulse = last.normal_impulse;
+        let mut tangent_impulse =
+            last.tangent_impulse - c.normal * c.normal.dot(&last.tangent_impulse);
+        let limit = c.friction * normal_impulse;
+        let size = tangent_impulse.norm();
+        if size > limit {
+            tangent_impulse *= limit / size;
+        }
+        c.normal_impulse = normal_impulse;
+        c.tangent_impulse = tangent_impulse;
+        let impulse = c.normal * normal_impulse + tangent_impulse;
+        if impulse != Vec3::zeros() {
+            apply_impulse(solver_nodes, nodes, &impulse, (0, dt));
+        }
+    }
 }
 
 /// Half-width (m), per axis, of the region a node's trajectory may wander over from the box it had
