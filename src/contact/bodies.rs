@@ -11,14 +11,16 @@
 //!
 //! 1. The **response** ([`respond_to_body_contacts`]): vertex–face and edge–edge contacts within a
 //!    skin, answered with inelastic normal impulses and Coulomb friction, equal and opposite on the
-//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law).
+//!    two bodies (so the pair's momentum is kept and the forces obey Newton's third law), each
+//!    contact of last tick started from last tick's impulses (warm start).
 //! 2. The **net** ([`resolve_body_collisions`]): the triangle pairs whose boxes meet, and the
 //!    narrow phase tests each pair's vertices against the other's face (both ways) and
 //!    each edge against the other's edges, with the earliest time of impact. What collides stops
 //!    short of the impact, at 90 % of the (lower-bound) time of impact along its own trajectory, and
 //!    takes the velocity that brings it there. This repeats a few rounds, as stopping some nodes can
 //!    expose other pairs; what still collides after that is frozen at its start-of-tick position,
-//!    where the previous tick left everything apart. Primitives that touch at the start of the tick
+//!    where the previous tick left everything apart (in further rounds until nothing collides:
+//!    freezing some nodes changes their triangles' trajectories). Primitives that touch at the start of the tick
 //!    and separate over it are left alone, so bodies can part. Nodes held by a tool are moved by the
 //!    tool only.
 
