@@ -1157,7 +1157,13 @@ impl World {
         if systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
-            let response = respond_to_body_contacts(&mut self.bodies, &self.origin, scratch, dt);
+            let response = respond_to_body_contacts(
+                &mut self.bodies,
+                &self.origin,
+                (&self.obstacles, &mut self.obstacle_reactions),
+                scratch,
+                dt,
+            );
             counters.bodies = resolve_body_collisions(&mut self.bodies, &self.origin, scratch, dt);
             counters.bodies.candidate_pairs += response.candidate_pairs;
             counters.bodies.overflows += response.overflows;

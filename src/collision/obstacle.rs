@@ -92,6 +92,49 @@ impl ObstacleShape {
         }
     }
 
+    /// The plane of the obstacle's surface that `p` lies within `margin` of (outside) or behind:
+    /// the plane itself, or for a box the face nearest to `p` when `p` is within the box grown by
+    /// `margin` (the plane a node resting on the obstacle is held by). `None` farther out.
+    pub fn plane_within(&self, p: &Vec3, margin: f64) -> Option<ContactPlane> {
+        match self {
+            ObstacleShape::Plane {
+                point_in_world,
+                normal_in_world,
+            } => ((p - point_in_world).dot(normal_in_world) <= margin).then_some(ContactPlane {
+                normal_in_world: *normal_in_world,
+                point_in_world: *point_in_world,
+            }),
+            ObstacleShape::Box {
+                center_in_world,
+                half_extents,
+                world_from_box,
+            } => {
+                let local = world_from_box.inverse_transform_vector(&(p - center_in_world));
+                let q = local.abs() - half_extents;
+                if q.x > margin || q.y > margin || q.z > margin {
+                    return None;
+                }
+                // The face whose slab the point is farthest out of (deepest in: least inside).
+                let axis = if q.x >= q.y && q.x >= q.z {
+                    0
+                } else if q.y >= q.z {
+                    1
+                } else {
+                    2
+                };
+                let sign = if local[axis] >= 0.0 { 1.0 } else { -1.0 };
+                let mut normal_local = Vec3::zeros();
+                normal_local[axis] = sign;
+                let mut point_local = Vec3::zeros();
+                point_local[axis] = sign * half_extents[axis];
+                Some(ContactPlane {
+                    normal_in_world: world_from_box * normal_local,
+                    point_in_world: center_in_world + world_from_box * point_local,
+                })
+            }
+        }
+    }
+
     /// If a point moving from `start` to `end` ends inside the obstacle, the plane to push it back to:
     /// for a box, the face the segment entered through (the nearest face when it started inside).
     pub fn contact_plane(&self, start: &Vec3, end: &Vec3) -> Option<ContactPlane> {
@@ -187,6 +230,37 @@ mod tests {
         assert_eq!(b.signed_distance(&Vec3::new(0.0, 0.0, 0.5)), -0.5);
         assert_eq!(b.signed_distance(&Vec3::new(0.0, 0.0, 3.0)), 2.0);
         assert!((b.signed_distance(&Vec3::new(2.0, 2.0, 0.0)) - 2f64.sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_plane_within_a_margin_is_the_nearest_face() {
+        let b = unit_box();
+        // Within the margin above the top face, and just inside it near the +x face.
+        let top = b.plane_within(&Vec3::new(0.2, 0.1, 1.0005), 1e-3).unwrap();
+        assert_eq!(top.normal_in_world, Vec3::z());
+        assert_eq!(top.point_in_world, Vec3::new(0.0, 0.0, 1.0));
+        let side = b.plane_within(&Vec3::new(0.99, 0.2, -0.5), 1e-3).unwrap();
+        assert_eq!(side.normal_in_world, Vec3::x());
+        assert!(b.plane_within(&Vec3::new(0.0, 0.0, 1.002), 1e-3).is_none());
+        let floor = ObstacleShape::Plane {
+            point_in_world: Vec3::zeros(),
+            normal_in_world: Vec3::z(),
+        };
+        assert!(
+            floor
+                .plane_within(&Vec3::new(5.0, 0.0, 0.0009), 1e-3)
+                .is_some()
+        );
+        assert!(
+            floor
+                .plane_within(&Vec3::new(5.0, 0.0, -0.3), 1e-3)
+                .is_some()
+        );
+        assert!(
+            floor
+                .plane_within(&Vec3::new(5.0, 0.0, 0.0011), 1e-3)
+                .is_none()
+        );
     }
 
     #[test]

@@ -29,6 +29,7 @@ use crate::Vec3;
 use crate::body::Body;
 use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
+use crate::collision::obstacle::Obstacle;
 use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_segment_distance};
 use crate::contact::tool::NO_TOOL;
 
@@ -227,6 +228,27 @@ struct SolverNode {
     changed: u32,
 }
 
+/// Most obstacle planes one node of the response is held by (a node in a corner of two).
+const GROUND_PER_NODE: usize = 2;
+
+/// An obstacle's plane under a node of the response that ends the tick on it or within the skin
+/// of it: the response's impulses may not push the node below the plane (or deeper than it was).
+/// The obstacle passes ran before the response and left such nodes on their obstacles; without
+/// these rows an organ pressed by another against the table has the nodes between pushed into the
+/// table by the response and out again by the next tick's obstacle pass, every tick (a heavy
+/// organ on a soft one then jitters and never rests). A one-sided row of the solve, its accumulated
+/// impulse ≥ 0 along the plane's normal, the obstacle's side of infinite mass.
+#[derive(Clone, Copy, Debug)]
+struct GroundRow {
+    slot: u32,
+    obstacle: u32,
+    normal: Vec3,
+    /// The least value of `normal · end` the node may end with (m).
+    floor: f64,
+    /// Accumulated impulse along `normal` (N s).
+    impulse: f64,
+}
+
 /// The nodes of the response's contacts, each once, side by side. The sweeps read and change this
 /// compact list instead of the bodies' arrays (and a node's displacement's velocity is kept up to
 /// date by each impulse instead of taken again, with three divisions, from its end and start at
@@ -234,6 +256,8 @@ struct SolverNode {
 #[derive(Clone, Debug)]
 struct SolverNodes {
     nodes: Room<SolverNode>,
+    /// The obstacles' planes under the listed nodes that rest on them (see [`GroundRow`]).
+    ground: Room<GroundRow>,
     /// Per body and node, its place in the list ([`NO_SLOT`]: none; every entry is `NO_SLOT`
     /// between ticks), with room for the body's most nodes.
     slot_of: Vec<Room<u32>>,
@@ -250,6 +274,7 @@ impl SolverNodes {
         let most = slot_of.iter().map(|m| m.capacity()).sum::<usize>();
         Self {
             nodes: Room::with_capacity(most),
+            ground: Room::with_capacity(GROUND_PER_NODE * most),
             slot_of,
         }
     }
@@ -298,6 +323,7 @@ impl SolverNodes {
             self.slot_of[n.r.body][n.r.node] = NO_SLOT;
         }
         self.nodes.clear();
+        self.ground.clear();
     }
 }
 
@@ -1592,11 +1618,14 @@ fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
 /// vertex may close the gap it had at the start of the tick down to half the skin and no more; end
 /// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
 /// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
-/// with its displacement's velocity. Run before the collision net ([`resolve_body_collisions`]),
+/// with its displacement's velocity. A node on an obstacle (within the skin of it) may not be
+/// pushed into it: the obstacle is a one-sided row of the same solve ([`GroundRow`]), and its
+/// impulses are added to `reactions`. Run before the collision net ([`resolve_body_collisions`]),
 /// which still guarantees no pass-through.
 pub fn respond_to_body_contacts(
     bodies: &mut [Body],
     group: &[usize],
+    (obstacles, reactions): (&[Obstacle], &mut [Vec3]),
     scratch: &mut BodyContactScratch,
     dt: f64,
 ) -> BodyContactCounters {
@@ -1902,6 +1931,8 @@ pub fn respond_to_body_contacts(
     }
     scratch.contacts.truncate(kept);
     counters.contacts = scratch.contacts.len() as u32;
+    // The obstacles the contacts' nodes rest on, which the impulses may not push them into.
+    counters.overflows += ground_rows(solver_nodes, obstacles);
     // Warm start: a contact that was there last tick, between the same nodes of bodies whose
     // topology did not change, starts from last tick's impulses (its tangential one on this
     // tick's tangent plane, within the cone): a resting stack's solve then starts where the last
@@ -1970,6 +2001,18 @@ pub fn respond_to_body_contacts(
             }
         }
     }
+    // The parting does not push a node into an obstacle either (the obstacle takes that share);
+    // the rows' impulses are the obstacles' reactions.
+    for row in solver_nodes.ground.iter() {
+        let n = &mut solver_nodes.nodes[row.slot as usize];
+        let below = row.floor - row.normal.dot(&n.end);
+        if below > 0.0 {
+            n.end += row.normal * below;
+        }
+        if let Some(reaction) = reactions.get_mut(row.obstacle as usize) {
+            *reaction += row.normal * (row.impulse / dt);
+        }
+    }
     // The ends of tick the response moved (its displacement impulses and the parting: nodes of
     // its contacts that a tool does not hold), for the net's hierarchies and bounds.
     for n in &solver_nodes.nodes {
@@ -1998,6 +2041,39 @@ pub fn respond_to_body_contacts(
         .warm_versions
         .extend(bodies.iter().map(|b| b.topology_version));
     counters
+}
+
+/// Lists a [`GroundRow`] for each listed node the response may move that ends the tick on an
+/// obstacle, behind it or within the skin of it (at most [`GROUND_PER_NODE`] a node, in the order
+/// of the nodes then of the obstacles); returns how many did not fit.
+fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle]) -> u32 {
+    let mut overflows = 0;
+    let SolverNodes { nodes, ground, .. } = solver_nodes;
+    for (slot, n) in nodes.iter().enumerate() {
+        if n.inverse_mass == 0.0 {
+            continue;
+        }
+        let mut rows = 0;
+        for (k, obstacle) in obstacles.iter().enumerate() {
+            let Some(plane) = obstacle.shape.plane_within(&n.end, CONTACT_SKIN) else {
+                continue;
+            };
+            if rows == GROUND_PER_NODE || ground.len() == ground.capacity() {
+                overflows += 1;
+                continue;
+            }
+            rows += 1;
+            let normal = plane.normal_in_world;
+            ground.push(GroundRow {
+                slot: slot as u32,
+                obstacle: k as u32,
+                normal,
+                floor: normal.dot(&plane.point_in_world).min(normal.dot(&n.end)),
+                impulse: 0.0,
+            });
+        }
+    }
+    overflows
 }
 
 /// How far ahead of the last match [`warm_start`] looks for a contact of last tick.
@@ -2915,6 +2991,28 @@ fn solve(
                 continue;
             }
             apply_impulse(nodes_of, nodes, &impulse, (update, dt));
+        }
+        // The obstacles under the nodes take what would push them in.
+        let SolverNodes {
+            nodes: listed,
+            ground,
+            ..
+        } = nodes_of;
+        for row in ground.iter_mut() {
+            let n = &mut listed[row.slot as usize];
+            let deficit = row.floor - row.normal.dot(&n.end);
+            let accumulated = (row.impulse + deficit / (n.inverse_mass * dt)).max(0.0);
+            let change = accumulated - row.impulse;
+            if change == 0.0 {
+                continue;
+            }
+            row.impulse = accumulated;
+            update += 1;
+            let dv = row.normal * (change * n.inverse_mass);
+            n.changed = update;
+            n.end += dv * dt;
+            n.motion += dv;
+            n.velocity += dv;
         }
     }
 }
