@@ -114,23 +114,12 @@ impl ObstacleShape {
                 if q.x > margin || q.y > margin || q.z > margin {
                     return None;
                 }
-                // The face whose slab the point is farthest out of (deepest in: least inside).
-                let axis = if q.x >= q.y && q.x >= q.z {
-                    0
-                } else if q.y >= q.z {
-                    1
-                } else {
-                    2
-                };
-                let sign = if local[axis] >= 0.0 { 1.0 } else { -1.0 };
-                let mut normal_local = Vec3::zeros();
-                normal_local[axis] = sign;
-                let mut point_local = Vec3::zeros();
-                point_local[axis] = sign * half_extents[axis];
-                Some(ContactPlane {
-                    normal_in_world: world_from_box * normal_local,
-                    point_in_world: center_in_world + world_from_box * point_local,
-                })
+                Some(box_face(
+                    center_in_world,
+                    half_extents,
+                    world_from_box,
+                    nearest_face(&local, half_extents),
+                ))
             }
         }
     }
@@ -158,18 +147,33 @@ impl ObstacleShape {
                 }
                 let start_local =
                     world_from_box.inverse_transform_vector(&(start - center_in_world));
-                let (axis, sign) = entry_face(&start_local, &end_local, half_extents)
+                let face = entry_face(&start_local, &end_local, half_extents)
                     .unwrap_or_else(|| nearest_face(&end_local, half_extents));
-                let mut normal_local = Vec3::zeros();
-                normal_local[axis] = sign;
-                let mut point_local = Vec3::zeros();
-                point_local[axis] = sign * half_extents[axis];
-                Some(ContactPlane {
-                    normal_in_world: world_from_box * normal_local,
-                    point_in_world: center_in_world + world_from_box * point_local,
-                })
+                Some(box_face(
+                    center_in_world,
+                    half_extents,
+                    world_from_box,
+                    face,
+                ))
             }
         }
+    }
+}
+
+/// The plane of face (`axis`, `sign`) of a box, in the world frame.
+fn box_face(
+    center_in_world: &Vec3,
+    half_extents: &Vec3,
+    world_from_box: &UnitQuaternion<f64>,
+    (axis, sign): (usize, f64),
+) -> ContactPlane {
+    let mut normal_local = Vec3::zeros();
+    normal_local[axis] = sign;
+    let mut point_local = Vec3::zeros();
+    point_local[axis] = sign * half_extents[axis];
+    ContactPlane {
+        normal_in_world: world_from_box * normal_local,
+        point_in_world: center_in_world + world_from_box * point_local,
     }
 }
 
