@@ -97,13 +97,9 @@ impl ObstacleShape {
     /// `margin` (the plane a node resting on the obstacle is held by). `None` farther out.
     pub fn plane_within(&self, p: &Vec3, margin: f64) -> Option<ContactPlane> {
         match self {
-            ObstacleShape::Plane {
-                point_in_world,
-                normal_in_world,
-            } => ((p - point_in_world).dot(normal_in_world) <= margin).then_some(ContactPlane {
-                normal_in_world: *normal_in_world,
-                point_in_world: *point_in_world,
-            }),
+            ObstacleShape::Plane { .. } => self
+                .as_plane()
+                .filter(|plane| plane.signed_distance(p) <= margin),
             ObstacleShape::Box {
                 center_in_world,
                 half_extents,
@@ -128,13 +124,9 @@ impl ObstacleShape {
     /// for a box, the face the segment entered through (the nearest face when it started inside).
     pub fn contact_plane(&self, start: &Vec3, end: &Vec3) -> Option<ContactPlane> {
         match self {
-            ObstacleShape::Plane {
-                point_in_world,
-                normal_in_world,
-            } => ((end - point_in_world).dot(normal_in_world) < 0.0).then_some(ContactPlane {
-                normal_in_world: *normal_in_world,
-                point_in_world: *point_in_world,
-            }),
+            ObstacleShape::Plane { .. } => self
+                .as_plane()
+                .filter(|plane| plane.signed_distance(end) < 0.0),
             ObstacleShape::Box {
                 center_in_world,
                 half_extents,

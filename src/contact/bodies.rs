@@ -991,8 +991,12 @@ fn started_near(bodies: &[Body], v: NodeRef, start: &[Vec3; 3]) -> bool {
     }
     // Over the face, not beside it.
     let foot = ps - unit * ahead;
-    barycentric(&foot, &start[0], &start[1], &start[2])
-        .is_some_and(|w| w.iter().all(|&x| x >= -1e-9))
+    barycentric(&foot, &start[0], &start[1], &start[2]).is_some_and(|w| on_face(&w))
+}
+
+/// Whether barycentric weights `w` put their point on the face (its sides included, to rounding).
+fn on_face(w: &[f64; 3]) -> bool {
+    w.iter().all(|&x| x >= -1e-9)
 }
 
 /// The contact of vertex `v` with face `face` (of another body), if the vertex ends the tick within
@@ -1003,7 +1007,6 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     let (end, face_normal, pe, q, distance) = vertex_face_nearest(bodies, v, face)?;
     let start = face.map(|r| start_of(bodies, r));
     let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
-    let on_face = |w: &[f64; 3]| w.iter().all(|&x| x >= -1e-9);
     // Nearest a side or corner of the face (and outside it): the contact pushes along the line to
     // that point, not along the face's normal (which would catch a vertex passing under an edge).
     let inside = weights.iter().all(|&x| x > 1e-9);
