@@ -1045,6 +1045,37 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     })
 }
 
+/// A vertex whose contact with a body starts the tick closer than this to it (m) is pressed onto
+/// it: it may take contacts with more faces of the body than its nearest ([`crossed_too`]).
+const PRESSED_GAP: f64 = 0.5 * REST_DISTANCE;
+/// Most contacts a pressed vertex takes with faces of one body besides its nearest.
+const MORE_FACES: usize = 2;
+/// Least angle between the normals of two contacts of one vertex with one body, as the largest
+/// cosine: nearly coplanar faces hold the vertex as one does.
+const SAME_NORMAL_COSINE: f64 = 0.999;
+
+/// The contact of vertex `v`, pressed onto another body (its nearest face's contact, of normal
+/// `first_normal`, started the tick closer than [`PRESSED_GAP`]), with another face `face` of that
+/// body, when the vertex ended the tick behind that face, over its inside, with a contact
+/// ([`vertex_face_contact`]) whose normal is not (nearly) the first one's. One contact per vertex
+/// and body holds a vertex on a surface; a vertex pressed into a fold of a soft organ pressed flat
+/// (two default-parameter organs stacked, the lower one squashed to a few millimetres) lies on two
+/// or three faces at once, and the impulses and the parting of its one contact pushed it through
+/// the others: the collision net stopped it at its start, every tick (21 collisions a tick), and
+/// the organs never came to rest.
+fn crossed_too(
+    bodies: &[Body],
+    v: NodeRef,
+    face: [NodeRef; 3],
+    first_normal: &Vec3,
+) -> Option<Contact> {
+    let c = vertex_face_contact(bodies, v, face)?;
+    // Over the inside: the contact's normal is the face's.
+    let inside = c.wb.iter().all(|&w| w > 1e-9);
+    let behind = (end_of(bodies, v) - end_of(bodies, face[0])).dot(&c.normal) < 0.0;
+    (inside && behind && c.normal.dot(first_normal) < SAME_NORMAL_COSINE).then_some(c)
+}
+
 /// Faces of another body a vertex is checked against at once (one AVX register of `f64`).
 const LANES_OF_FACES: usize = 4;
 
@@ -1808,6 +1839,7 @@ pub fn respond_to_body_contacts(
                     let distance = vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize));
                     keep(faces, distance, t);
                 }
+                let mut first: Option<Contact> = None;
                 while !faces.is_empty() {
                     let mut nearest = 0;
                     for m in 1..faces.len() {
@@ -1826,7 +1858,23 @@ pub fn respond_to_body_contacts(
                     if let Some(c) = vertex_face_contact(bodies, vertex, face_of(sj, j, t as usize))
                     {
                         push(&mut scratch.contacts, &mut counters, c);
+                        first = Some(c);
                         break;
+                    }
+                }
+                // A vertex pressed onto the other body that also ended crossed over the inside of
+                // other faces of it (a fold of a surface pressed flat): a contact with each.
+                if let Some(first) = first.filter(|c| c.gap < PRESSED_GAP) {
+                    let mut extra = 0;
+                    for &(distance, t) in faces.iter() {
+                        if distance >= REST_DISTANCE || extra == MORE_FACES {
+                            continue;
+                        }
+                        let face = face_of(sj, j, t as usize);
+                        if let Some(c) = crossed_too(bodies, vertex, face, &first.normal) {
+                            push(&mut scratch.contacts, &mut counters, c);
+                            extra += 1;
+                        }
                     }
                 }
             }
@@ -1931,7 +1979,8 @@ pub fn respond_to_body_contacts(
             }
         }
     }
-    // One contact per vertex (or edge) and other body, the nearest (kept above), in a fixed order:
+    // One contact per vertex (or edge) and other body, the nearest (kept above; a vertex pressed into
+    // a fold takes up to two more, see `crossed_too`), in a fixed order:
     // the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
     // (edge) of a body is named in one run of its pair's list (through the one triangle that owns
     // it), and the lists keep the order of a traversal of the hierarchies whose descent does not
