@@ -408,6 +408,25 @@ fn a_heavy_organ_on_a_light_one_stays_where_it_was_laid_and_comes_to_rest() {
     }
 }
 
+/// Two organs of the default parameters on the table, the smaller laid on the larger.
+const SOFT_PAIR: &str = r#"
+    [world]
+    air_viscosity = 1.0
+    [[obstacle]]
+    name = "table"
+    plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+    friction = 0.5
+    static_friction = 0.7
+    [[body]]
+    name = "lower"
+    mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 2 } }
+    position = [0.0, 0.0, 0.0305]
+    [[body]]
+    name = "upper"
+    mesh = { ellipsoid = { radii = [0.04, 0.03, 0.015], subdivisions = 2 } }
+    position = [0.0, 0.0, 0.076]
+"#;
+
 /// A soft organ (the default parameters: it flattens to a few millimetres under a second organ of
 /// its own weight) pressed against the table by another: the response between the two organs may
 /// not push the nodes between them into the table, which the obstacle pass put them on (without
@@ -416,24 +435,7 @@ fn a_heavy_organ_on_a_light_one_stays_where_it_was_laid_and_comes_to_rest() {
 /// either ends a tick below the table, and none is inside the other organ.
 #[test]
 fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
-    let text = r#"
-        [world]
-        air_viscosity = 1.0
-        [[obstacle]]
-        name = "table"
-        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-        friction = 0.5
-        static_friction = 0.7
-        [[body]]
-        name = "lower"
-        mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.0305]
-        [[body]]
-        name = "upper"
-        mesh = { ellipsoid = { radii = [0.04, 0.03, 0.015], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.076]
-    "#;
-    let mut world = World::from_scene(&common::scene(text));
+    let mut world = World::from_scene(&common::scene(SOFT_PAIR));
     let mut lowest = f64::INFINITY;
     let mut pressed = 0;
     for k in 1..=1500 {
@@ -476,22 +478,8 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
 /// each face it crossed (`crossed_too`). No node is ever inside the other organ.
 #[test]
 fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
-    let text = r#"
-        [world]
-        air_viscosity = 1.0
-        [[obstacle]]
-        name = "table"
-        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-        friction = 0.5
-        static_friction = 0.7
-        [[body]]
-        name = "lower"
-        mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.0305]
-        [[body]]
-        name = "upper"
-        mesh = { ellipsoid = { radii = [0.04, 0.03, 0.015], subdivisions = 2 } }
-        position = [0.0, 0.0, 0.076]
+    let text = SOFT_PAIR.to_string()
+        + r#"
         [[tool]]
         name = "probe"
         shape = { sphere = { radius = 0.006 } }
@@ -503,7 +491,7 @@ fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
           { t = 2.5, position = [0.0, 0.0, 0.2] },
         ]
     "#;
-    let mut world = World::from_scene(&common::scene(text));
+    let mut world = World::from_scene(&common::scene(&text));
     let (mut pressed, mut collisions, mut most_kinetic) = (0.0f64, 0u64, 0.0f64);
     for k in 1..=3500 {
         world.step();
