@@ -216,20 +216,28 @@ fn an_organ_resting_on_another_and_pressed_stays_and_comes_to_rest() {
     }
 }
 
-fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
-    let organs = organ_on_organ(integrator, 0.2);
-    let probe = r#"
+/// A probe (a 6 mm sphere) on the vertical through the origin, scripted: from 0.2 m high down to
+/// `approach` (m) at 1.5 s, to `deepest` at 2 s, back up to 0.2 m at 2.5 s.
+fn pressing_probe(approach: f64, deepest: f64) -> String {
+    format!(
+        r#"
         [[tool]]
         name = "probe"
-        shape = { sphere = { radius = 0.006 } }
+        shape = {{ sphere = {{ radius = 0.006 }} }}
         input = "script"
         script = [
-          { t = 0.0, position = [0.0, 0.0, 0.2] },
-          { t = 1.5, position = [0.0, 0.0, 0.13] },
-          { t = 2.0, position = [0.0, 0.0, 0.066] },
-          { t = 2.5, position = [0.0, 0.0, 0.2] },
+          {{ t = 0.0, position = [0.0, 0.0, 0.2] }},
+          {{ t = 1.5, position = [0.0, 0.0, {approach:?}] }},
+          {{ t = 2.0, position = [0.0, 0.0, {deepest:?}] }},
+          {{ t = 2.5, position = [0.0, 0.0, 0.2] }},
         ]
-    "#;
+    "#
+    )
+}
+
+fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
+    let organs = organ_on_organ(integrator, 0.2);
+    let probe = pressing_probe(0.13, 0.066);
     let mut world = World::from_scene(&common::scene(&format!("{organs}\n{probe}")));
     let gravity = world.params.gravity;
     let mut energy_before_probe = 0.0;
@@ -478,19 +486,7 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
 /// each face it crossed (`crossed_too`). No node is ever inside the other organ.
 #[test]
 fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
-    let text = SOFT_PAIR.to_string()
-        + r#"
-        [[tool]]
-        name = "probe"
-        shape = { sphere = { radius = 0.006 } }
-        input = "script"
-        script = [
-          { t = 0.0, position = [0.0, 0.0, 0.2] },
-          { t = 1.5, position = [0.0, 0.0, 0.03] },
-          { t = 2.0, position = [0.0, 0.0, 0.011] },
-          { t = 2.5, position = [0.0, 0.0, 0.2] },
-        ]
-    "#;
+    let text = format!("{SOFT_PAIR}\n{}", pressing_probe(0.03, 0.011));
     let mut world = World::from_scene(&common::scene(&text));
     let (mut pressed, mut collisions, mut most_kinetic) = (0.0f64, 0u64, 0.0f64);
     for k in 1..=3500 {
