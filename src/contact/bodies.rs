@@ -999,6 +999,12 @@ fn on_face(w: &[f64; 3]) -> bool {
     w.iter().all(|&x| x >= -1e-9)
 }
 
+/// Whether barycentric weights `w` put their point inside the face (off its sides and corners, by
+/// more than rounding): a contact there pushes along the face's normal.
+fn inside_face(w: &[f64; 3]) -> bool {
+    w.iter().all(|&x| x > 1e-9)
+}
+
 /// The contact of vertex `v` with face `face` (of another body), if the vertex ends the tick within
 /// the skin of the face, or crossed its plane over the tick inside it, or started the tick over it
 /// within the skin ([`started_near`]). Its distance is the one
@@ -1009,8 +1015,7 @@ fn vertex_face_contact(bodies: &[Body], v: NodeRef, face: [NodeRef; 3]) -> Optio
     let weights = barycentric(&q, &end[0], &end[1], &end[2])?;
     // Nearest a side or corner of the face (and outside it): the contact pushes along the line to
     // that point, not along the face's normal (which would catch a vertex passing under an edge).
-    let inside = weights.iter().all(|&x| x > 1e-9);
-    let normal = if !inside && distance > 1e-12 && (pe - q).dot(&face_normal) > 0.0 {
+    let normal = if !inside_face(&weights) && distance > 1e-12 && (pe - q).dot(&face_normal) > 0.0 {
         (pe - q) / distance
     } else {
         face_normal
@@ -1071,9 +1076,8 @@ fn crossed_too(
 ) -> Option<Contact> {
     let c = vertex_face_contact(bodies, v, face)?;
     // Over the inside: the contact's normal is the face's.
-    let inside = c.wb.iter().all(|&w| w > 1e-9);
     let behind = (end_of(bodies, v) - end_of(bodies, face[0])).dot(&c.normal) < 0.0;
-    (inside && behind && c.normal.dot(first_normal) < SAME_NORMAL_COSINE).then_some(c)
+    (inside_face(&c.wb) && behind && c.normal.dot(first_normal) < SAME_NORMAL_COSINE).then_some(c)
 }
 
 /// Faces of another body a vertex is checked against at once (one AVX register of `f64`).
@@ -1867,7 +1871,10 @@ pub fn respond_to_body_contacts(
                 if let Some(first) = first.filter(|c| c.gap < PRESSED_GAP) {
                     let mut extra = 0;
                     for &(distance, t) in faces.iter() {
-                        if distance >= REST_DISTANCE || extra == MORE_FACES {
+                        if extra == MORE_FACES {
+                            break;
+                        }
+                        if distance >= REST_DISTANCE {
                             continue;
                         }
                         let face = face_of(sj, j, t as usize);
