@@ -1347,6 +1347,19 @@ mod wide {
                 _mm256_cmp_pd::<_CMP_LT_OQ>(numerator, denominator),
             ),
         );
+        let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
+        // No side past these checks (most batches of a resting stack): the divisions below, whose
+        // answers would not be read, are skipped.
+        if _mm256_movemask_pd(_mm256_and_pd(within, inside)) == 0 {
+            return SidesAnswer {
+                within: _mm256_movemask_pd(within) as u32,
+                through: 0,
+                unordered: _mm256_movemask_pd(unordered) as u32,
+                s: [0.0; 4],
+                t: [0.0; 4],
+                distance: [0.0; 4],
+            };
+        }
         // The parameters inside both, and the nearest points within the skin (the lanes turned
         // down above may divide by zero: their answers are not used).
         let (low, high) = (
@@ -1372,7 +1385,6 @@ mod wide {
             _mm256_and_pd(inside, near),
             _mm256_and_pd(inner(s), inner(t)),
         );
-        let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
         SidesAnswer {
             within: _mm256_movemask_pd(within) as u32,
             through: _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
@@ -1452,6 +1464,11 @@ mod wide {
                 _mm256_mul_pd(_mm256_set1_pd(reach * reach), dot3(normal, normal)),
             ),
         );
+        // Every face out of reach (as the scalar code finds them, coordinates all numbers): no
+        // distance is read, and none is computed.
+        if _mm256_movemask_pd(beyond) == 0b1111 && _mm256_movemask_pd(unordered) == 0 {
+            return ([0.0; 4], 0, 0);
+        }
         // The closest point's regions, in the scalar code's order.
         let d1 = dot3(ab, ap);
         let d2 = dot3(ac, ap);
