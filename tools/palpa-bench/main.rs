@@ -12,8 +12,9 @@
 //! * `cut`: a 10 cm incision drawn in 1 s across a 2 562-node organ: tick distribution during the cut
 //!   against the same scene with the blade passing above the organ, the cost of one incision step,
 //!   and the cost of a transection (the tube of `scenes/transection.toml` cut through).
-//! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching and
-//!   stacked (2 and 4 organs of 162 and 642 nodes), and the laparoscopy scene's tick distribution
+//! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching,
+//!   stacked in twos and (4 organs) in a tower that topples into a heap (2 and 4 organs of 162 and
+//!   642 nodes), and the laparoscopy scene's tick distribution
 //!   with the demo's two tools, per stage.
 //! * `reference`: palpa's whole tick on a 10 242-node organ (no contact) against the plain reference
 //!   step ([`reference`]: array of structs, scalar `f64`) of the same system, in the same run, best
@@ -896,8 +897,10 @@ fn scene_ticks(text: &str, name: &str, window: std::ops::Range<u64>) -> Result<V
 }
 
 /// `count` organs (ellipsoids 8 × 6 × 3 cm of `subdivisions`) on the table: `apart` in a row 4 cm
-/// from each other, `touching` side by side in a row (0.5 mm apart, within the contact skin), or
-/// `stacked` one on another.
+/// from each other, `touching` side by side in a row (0.5 mm apart, within the contact skin),
+/// `stacked` in stacks of two (each organ on the table or resting on the one below; the stacks in
+/// a row, 4 cm apart), or `tower`, all one on another (three or more of these soft, rounded organs
+/// topple: the upper ones fall off and slide, and the case measures a heap settling).
 fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
     let mut text = String::from(
         "[world]\nair_viscosity = 1.0\n\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
@@ -906,6 +909,7 @@ fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
         let (x, z) = match layout {
             "apart" => (k as f64 * 0.12, 0.0155),
             "touching" => (k as f64 * 0.0805, 0.0155),
+            "stacked" => ((k / 2) as f64 * 0.12, 0.0155 + (k % 2) as f64 * 0.0305),
             _ => (0.0, 0.0155 + k as f64 * 0.0305),
         };
         text += &format!(
@@ -922,11 +926,12 @@ fn bodies(args: GraspArgs) -> Result<()> {
     let reps = if args.quick { 1 } else { 3 };
     let levels: &[u32] = if args.quick { &[2] } else { &[2, 3] };
     let counts: &[usize] = if args.quick { &[2] } else { &[2, 4] };
-    let layouts = ["apart", "touching", "stacked"];
+    let layouts = ["apart", "touching", "stacked", "tower"];
     let mut cases = Vec::new();
     for &level in levels {
         for &count in counts {
-            for layout in layouts {
+            // Two organs in a tower are a stack of two.
+            for layout in layouts.into_iter().filter(|&l| l != "tower" || count > 2) {
                 cases.push((level, count, layout));
             }
         }
@@ -940,7 +945,9 @@ fn bodies(args: GraspArgs) -> Result<()> {
     let mut md = format!(
         "# palpa-bench bodies\n\n`{command}` — {} — {}\n\n\
          Organs (ellipsoids 8 × 6 × 3 cm) on a table, `apart` (4 cm gaps), `touching` (side by side, \
-         0.5 mm apart: within the contact skin) or `stacked` (each resting on the one below); 1.5 s to \
+         0.5 mm apart: within the contact skin), `stacked` (stacks of two, 4 cm apart: each organ resting \
+         on the table or on the one below) or `tower` (all one on another: they topple, and the upper \
+         ones fall and slide, so this measures a heap settling, bodies in moving contact); 1.5 s to \
          settle, then 1 s measured with `World::step_profiled`, {reps} run(s) each (the cases in turn \
          in each round of runs), the best kept (the least mean tick). *body contact*: the body–body stage (response and collision net) per \
          tick; *tick*: the whole tick.\n\n\
