@@ -731,6 +731,10 @@ fn stack_of_four(radii: [f64; 3], bottom: f64, spacing: f64) -> String {
 /// slack) give the same result bits as pairs listed every tick: a block sliding down a tilted body
 /// (it leaves its slack every tick once fast) and four flat organs settling into a stack (they come
 /// to rest, and the listing stops). Every node's position and velocity is compared after every tick.
+/// (Pairs listed every tick have no gaps from a held anchor: the net tests all of them, where the
+/// kept lists pass over the pairs of bodies, and the triangle pairs, whose anchor boxes are
+/// farther apart than the nodes left them; a triangle pair passed over wrongly changes the net's
+/// count of candidate pairs.)
 #[test]
 fn candidate_pairs_kept_between_ticks_give_the_bits_of_pairs_listed_every_tick() {
     let stack = || {

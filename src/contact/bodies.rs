@@ -749,6 +749,7 @@ pub fn resolve_body_collisions(
                 let cache = &mut scratch.cache;
                 let (start, end) = cache.pair_ranges[pair];
                 let kept = &cache.pairs[cache.current][start as usize..end as usize];
+                let gaps = &mut cache.pair_gaps[cache.current][start as usize..end as usize];
                 // The two bodies' triangle boxes of this tick lie within their anchor boxes grown
                 // by their excursions from them: when the least gap of the pairs' anchor boxes
                 // exceeds the two excursions (with room for rounding), no boxes meet.
@@ -757,20 +758,24 @@ pub fn resolve_body_collisions(
                 let anchored = [i, j].map(|k| cache.anchor_excursion[k] <= ANCHOR_SLACK);
                 let anchored_at = [i, j].map(|k| cache.anchored_at[k]);
                 let least = &mut cache.least_gaps[pair];
-                if anchored == [true; 2]
-                    && anchored_at == [least.1; 2]
-                    && least.0
-                        > cache.anchor_excursion[i] + cache.anchor_excursion[j] + GAP_ROUNDING
-                {
+                let apart = cache.anchor_excursion[i] + cache.anchor_excursion[j] + GAP_ROUNDING;
+                let held = anchored == [true; 2] && anchored_at == [least.1; 2];
+                if held && least.0 > apart {
                     continue;
                 }
                 // Both anchors taken this tick: this round's boxes are the anchor boxes, and the
-                // least gap is found with them.
+                // least gap is found with them, and each triangle pair's.
                 let fresh = round == 0 && anchored == [true; 2] && anchored_at == [net_tick; 2];
+                // Else, while they hold, the triangle pairs whose own gap exceeds the excursions
+                // are passed over (not a number: not known, taken).
+                let held = held && !fresh;
                 let (mut least_now, mut unordered) = (f64::INFINITY, false);
                 // (Consecutive pairs often share their first triangle: its box is taken once.)
                 let mut box_a = (u32::MAX, Aabb::empty());
-                for &(ta, tb) in kept {
+                for (&(ta, tb), pair_gap) in kept.iter().zip(gaps.iter_mut()) {
+                    if held && *pair_gap > apart {
+                        continue;
+                    }
                     if ta != box_a.0 {
                         box_a = (ta, scratch.now.of(i, ta as usize, &bodies[i]));
                     }
@@ -779,6 +784,7 @@ pub fn resolve_body_collisions(
                         let gap = box_a.1.gap(&box_b);
                         unordered |= gap.is_nan();
                         least_now = least_now.min(gap);
+                        *pair_gap = gap;
                     }
                     if box_a.1.overlaps(&box_b) {
                         scratch.pairs.push((ta, tb));
@@ -2327,6 +2333,10 @@ struct CandidateCache {
     /// order of the hierarchies' traversal).
     entries: [Room<Candidate>; 2],
     pairs: [Room<(u32, u32)>; 2],
+    /// Beside each triangle pair of `pairs`, the gap between the two triangles' anchor boxes,
+    /// found with the pair of bodies' least gap (not a number until then): while the anchors hold,
+    /// a triangle pair whose gap exceeds the two excursions has boxes that do not meet.
+    pair_gaps: [Room<f64>; 2],
     current: usize,
     /// The bodies the tables have room for.
     slots: usize,
@@ -2365,6 +2375,10 @@ impl CandidateCache {
                 Room::with_capacity(CANDIDATE_CAPACITY),
             ],
             pairs: [
+                Room::with_capacity(PAIR_CAPACITY),
+                Room::with_capacity(PAIR_CAPACITY),
+            ],
+            pair_gaps: [
                 Room::with_capacity(PAIR_CAPACITY),
                 Room::with_capacity(PAIR_CAPACITY),
             ],
@@ -2547,8 +2561,15 @@ impl CandidateCache {
         } else {
             (&*second_pairs, first_pairs)
         };
+        let [first_gaps, second_gaps] = &mut self.pair_gaps;
+        let (used_gaps, next_gaps) = if current == 0 {
+            (&*first_gaps, second_gaps)
+        } else {
+            (&*second_gaps, first_gaps)
+        };
         next.clear();
         next_pairs.clear();
+        next_gaps.clear();
 
         for (i, body) in bodies.iter().enumerate().take(n) {
             for (j, body_j) in bodies.iter().enumerate().take(n) {
@@ -2564,6 +2585,7 @@ impl CandidateCache {
                     let range = self.pair_ranges[pair];
                     let start = next_pairs.len() as u32;
                     next_pairs.extend_from_slice(&used_pairs[range.0 as usize..range.1 as usize]);
+                    next_gaps.extend_from_slice(&used_gaps[range.0 as usize..range.1 as usize]);
                     self.pair_ranges[pair] = (start, next_pairs.len() as u32);
                     continue;
                 }
@@ -2599,6 +2621,8 @@ impl CandidateCache {
                     let (left, right) = bvhs.split_at_mut(j);
                     complete &= left[i].overlapping_pairs(&right[0], next_pairs);
                 }
+                // (Both lists have the same room.)
+                next_gaps.resize(next_pairs.len(), f64::NAN);
                 self.pair_ranges[pair] = (start, next_pairs.len() as u32);
                 self.least_gaps[pair] = (f64::NAN, 0);
                 counters.listed_pairs += 1;
