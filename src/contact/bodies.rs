@@ -1379,7 +1379,30 @@ mod wide {
             )
         };
         let s = _mm256_div_pd(numerator, denominator);
-        let t = _mm256_div_pd(_mm256_add_pd(_mm256_mul_pd(b, s), f), e);
+        // The second parameter's numerator x = b s + f: where x < e ε / 2 or x > e (1 − ε / 2)
+        // (ε = `EDGE_INNER`; both products rounded), the parameter x / e, rounded, is below ε or
+        // above 1 − ε (the margin ε / 2 is ten orders above the roundings): the side is turned
+        // down. No side left (about half the batches of a resting stack): the second division
+        // and the square root are skipped.
+        let x = _mm256_add_pd(_mm256_mul_pd(b, s), f);
+        let below = _mm256_mul_pd(e, _mm256_set1_pd(0.5 * super::EDGE_INNER));
+        let above = _mm256_mul_pd(e, _mm256_set1_pd(1.0 - 0.5 * super::EDGE_INNER));
+        let may = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_NLT_UQ>(x, below),
+            _mm256_cmp_pd::<_CMP_NGT_UQ>(x, above),
+        );
+        let left = _mm256_and_pd(_mm256_and_pd(within, inside), _mm256_and_pd(inner(s), may));
+        if _mm256_movemask_pd(left) == 0 {
+            return SidesAnswer {
+                within: _mm256_movemask_pd(within) as u32,
+                through: 0,
+                unordered: _mm256_movemask_pd(unordered) as u32,
+                s: [0.0; 4],
+                t: [0.0; 4],
+                distance: [0.0; 4],
+            };
+        }
+        let t = _mm256_div_pd(x, e);
         let pa: [__m256d; 3] =
             std::array::from_fn(|k| _mm256_add_pd(a0[k], _mm256_mul_pd(d1[k], s)));
         let pb: [__m256d; 3] =
@@ -3361,6 +3384,74 @@ mod tests {
             assert!(
                 within > 4000 && through > 1000 && unordered > 300,
                 "{within} within, {through} through, {unordered} not a number"
+            );
+        }
+    }
+
+    /// The sides' nearest points at parameters next to the ends' margins (`EDGE_INNER` and
+    /// 1 − `EDGE_INNER`, and the half margins the four-side kernel turns sides down by before its
+    /// second division): the kernel answers as the scalar code, lane by lane, on either side of
+    /// each margin.
+    #[test]
+    fn four_sides_at_a_time_answer_as_one_at_a_time_next_to_the_ends_margins() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !crate::dynamics::kernel::simd_available() {
+                eprintln!("no AVX on this machine: the scalar code alone runs");
+                return;
+            }
+            // The edge along x at height 0.5 mm, crossing the y axis at its middle; each side
+            // along y, through the origin at parameter t.
+            let (a0, a1) = (Vec3::new(-1e-3, 0.0, 5e-4), Vec3::new(1e-3, 0.0, 5e-4));
+            let edge = EdgeAtEnd {
+                refs: [0, 1].map(|node| NodeRef { body: 0, node }),
+                a0,
+                a1,
+                d1: a1 - a0,
+                length2: (a1 - a0).norm_squared(),
+                low: a0.inf(&a1),
+                high: a0.sup(&a1),
+            };
+            let mut parameters = Vec::new();
+            for margin in [EDGE_INNER, 0.5 * EDGE_INNER] {
+                for relative in [-1e-3, -1e-9, 0.0, 1e-9, 1e-3] {
+                    let t = margin * (1.0 + relative);
+                    parameters.extend([t, 1.0 - t]);
+                }
+            }
+            let (mut through, mut turned_down) = (0, 0);
+            // Four sides of one parameter at a time (sides of several lengths): a batch the
+            // kernel may turn down whole before its second division.
+            for &t in &parameters {
+                let mut positions = Vec::new();
+                for l in 0..4 {
+                    let length = 2e-3 * (1.0 + l as f64 * 0.37);
+                    positions.push(Vec3::new(0.0, -t * length, 0.0));
+                    positions.push(Vec3::new(0.0, (1.0 - t) * length, 0.0));
+                }
+                // SAFETY: AVX checked above; indices below 8.
+                let answer =
+                    unsafe { wide::edge_sides(&edge, &positions, [0, 2, 4, 6], [1, 3, 5, 7]) };
+                for l in 0..4 {
+                    let (e0, e1) = (positions[2 * l], positions[2 * l + 1]);
+                    let scalar = nearest_within_skin(&edge, &e0, &e1);
+                    assert_eq!(answer.within & (1 << l) != 0, !edge.apart(&e0, &e1));
+                    assert_eq!(
+                        answer.through & (1 << l) != 0,
+                        scalar.is_some(),
+                        "t = {t:e}, lane {l}"
+                    );
+                    if scalar.is_some() {
+                        through += 1;
+                    } else {
+                        turned_down += 1;
+                    }
+                }
+            }
+            // Both answers on either side of the margins.
+            assert!(
+                through >= 16 && turned_down >= 32,
+                "{through} through, {turned_down} not"
             );
         }
     }
