@@ -205,7 +205,9 @@ fn a_block_on_a_tilted_body_sticks_or_slides_with_coulomb_friction() {
 }
 
 /// An organ resting on another, pressed by a probe: it stays on the lower one and comes to rest
-/// (kinetic energy below 1e-5 J within a second of the probe leaving); no node of either is ever
+/// (kinetic energy below 1e-5 J at tick 3 499, 1.42 s after the probe left; the largest of the
+/// ticks from 1 s after it is printed, not asserted: single-tick spikes of one node reach 1.7e-5
+/// and 2.0e-5 J there, see the README); no node of either is ever
 /// inside the other and no surface crosses the other; the contact forces on the two organs are equal
 /// and opposite every tick; without the probe, the pair's energy never grows. With the multi-rate
 /// (default) and the implicit integrator.
@@ -245,6 +247,7 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
     let mut worst_sum: f64 = 0.0;
     let mut pressed: f64 = 0.0;
     let mut resting_kinetic = f64::INFINITY;
+    let (mut left_at, mut most_after) = (0, 0.0f64);
     for k in 0..3500 {
         world.step();
         let forces = world.body_contact_forces();
@@ -273,6 +276,14 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
         if k == 3499 {
             resting_kinetic = world.bodies[1].kinetic_energy();
         }
+        // (Reported, not asserted: the largest kinetic energy of any tick from a second after the
+        // probe left; see the README, "Contact between bodies", on the single-tick spikes.)
+        if world.tools[0].feedback.force_in_world.norm() > 0.0 {
+            left_at = k;
+            most_after = 0.0;
+        } else if left_at > 0 && k >= left_at + 1000 {
+            most_after = most_after.max(world.bodies[1].kinetic_energy());
+        }
     }
     let (lower, upper) = (&world.bodies[0], &world.bodies[1]);
     let (l, u) = (
@@ -280,7 +291,7 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
         upper.surface_centre_of_mass(),
     );
     println!(
-        "{integrator}: probe pressed up to {pressed:.3} N; upper organ at {:.4?} on the lower at {:.4?}; kinetic energy 1 s after the probe left {resting_kinetic:.2e} J; energy change from 0.5 to 1.4 s {growth:.2e} J; worst force sum {worst_sum:.2e} N; {:?}",
+        "{integrator}: probe pressed up to {pressed:.3} N; upper organ at {:.4?} on the lower at {:.4?}; kinetic energy 1 s after the probe left {resting_kinetic:.2e} J (at tick 3 499; the probe left at tick {left_at}, the largest of any tick from 1 s after it {most_after:.2e} J); energy change from 0.5 to 1.4 s {growth:.2e} J; worst force sum {worst_sum:.2e} N; {:?}",
         u.as_slice(),
         l.as_slice(),
         world.counters.bodies
@@ -483,12 +494,15 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
 /// with one contact a vertex (its nearest face) the response pushed them through the others, the
 /// net stopped them at their start every tick (21 collisions a tick), and the upper organ jittered
 /// (1.6e-5 to 2.6e-5 J a second after the probe left) until a pressed vertex took a contact with
-/// each face it crossed (`crossed_too`). No node is ever inside the other organ.
+/// each face it crossed (`crossed_too`). No node is ever inside the other organ. The kinetic energy
+/// is asserted every 50 ticks from 3.0 to 3.5 s; the largest of every tick there is printed, not
+/// asserted (single-tick spikes up to 1.6e-5 J, see the README).
 #[test]
 fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
     let text = format!("{SOFT_PAIR}\n{}", pressing_probe(0.03, 0.011));
     let mut world = World::from_scene(&common::scene(&text));
     let (mut pressed, mut collisions, mut most_kinetic) = (0.0f64, 0u64, 0.0f64);
+    let mut most_any_tick = 0.0f64;
     for k in 1..=3500 {
         world.step();
         pressed = pressed.max(world.tools[0].feedback.force_in_world.norm());
@@ -498,13 +512,16 @@ fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
         if k >= 3000 && k % 50 == 0 {
             most_kinetic = most_kinetic.max(world.bodies[1].kinetic_energy());
         }
+        if k >= 3000 {
+            most_any_tick = most_any_tick.max(world.bodies[1].kinetic_energy());
+        }
         if k % 100 == 0 {
             assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
         }
     }
     let per_tick = collisions as f64 / 1000.0;
     println!(
-        "probe pressed up to {pressed:.3} N; upper organ's kinetic energy 0.5 to 1 s after the probe left at most {most_kinetic:.2e} J (lower organ {:.2e} J at 3.5 s); net collisions a tick from 2.5 to 3.5 s {per_tick:.2}; {:?}",
+        "probe pressed up to {pressed:.3} N; upper organ's kinetic energy 0.5 to 1 s after the probe left at most {most_kinetic:.2e} J every 50 ticks, {most_any_tick:.2e} J of any tick (lower organ {:.2e} J at 3.5 s); net collisions a tick from 2.5 to 3.5 s {per_tick:.2}; {:?}",
         world.bodies[0].kinetic_energy(),
         world.counters.bodies
     );
