@@ -1354,8 +1354,8 @@ mod wide {
             ),
         );
         let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
-        // No side past these checks (most batches of a resting stack): the divisions below, whose
-        // answers would not be read, are skipped.
+        // No side past these checks: the divisions below, whose answers would not be read, are
+        // skipped.
         if _mm256_movemask_pd(_mm256_and_pd(within, inside)) == 0 {
             return SidesAnswer {
                 within: _mm256_movemask_pd(within) as u32,
@@ -1382,8 +1382,7 @@ mod wide {
         // The second parameter's numerator x = b s + f: where x < e ε / 2 or x > e (1 − ε / 2)
         // (ε = `EDGE_INNER`; both products rounded), the parameter x / e, rounded, is below ε or
         // above 1 − ε (the margin ε / 2 is ten orders above the roundings): the side is turned
-        // down. No side left (about half the batches of a resting stack): the second division
-        // and the square root are skipped.
+        // down. No side left: the second division and the square root are skipped.
         let x = _mm256_add_pd(_mm256_mul_pd(b, s), f);
         let below = _mm256_mul_pd(e, _mm256_set1_pd(0.5 * super::EDGE_INNER));
         let above = _mm256_mul_pd(e, _mm256_set1_pd(1.0 - 0.5 * super::EDGE_INNER));
