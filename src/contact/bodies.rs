@@ -1354,17 +1354,19 @@ mod wide {
             ),
         );
         let within = _mm256_andnot_pd(apart, _mm256_set1_pd(f64::from_bits(u64::MAX)));
+        // The answer when no side goes through (its parameters and distances not read).
+        let none_through = SidesAnswer {
+            within: _mm256_movemask_pd(within) as u32,
+            through: 0,
+            unordered: _mm256_movemask_pd(unordered) as u32,
+            s: [0.0; 4],
+            t: [0.0; 4],
+            distance: [0.0; 4],
+        };
         // No side past these checks: the divisions below, whose answers would not be read, are
         // skipped.
         if _mm256_movemask_pd(_mm256_and_pd(within, inside)) == 0 {
-            return SidesAnswer {
-                within: _mm256_movemask_pd(within) as u32,
-                through: 0,
-                unordered: _mm256_movemask_pd(unordered) as u32,
-                s: [0.0; 4],
-                t: [0.0; 4],
-                distance: [0.0; 4],
-            };
+            return none_through;
         }
         // The parameters inside both, and the nearest points within the skin (the lanes turned
         // down above may divide by zero: their answers are not used).
@@ -1392,14 +1394,7 @@ mod wide {
         );
         let left = _mm256_and_pd(_mm256_and_pd(within, inside), _mm256_and_pd(inner(s), may));
         if _mm256_movemask_pd(left) == 0 {
-            return SidesAnswer {
-                within: _mm256_movemask_pd(within) as u32,
-                through: 0,
-                unordered: _mm256_movemask_pd(unordered) as u32,
-                s: [0.0; 4],
-                t: [0.0; 4],
-                distance: [0.0; 4],
-            };
+            return none_through;
         }
         let t = _mm256_div_pd(x, e);
         let pa: [__m256d; 3] =
@@ -1414,12 +1409,11 @@ mod wide {
             _mm256_and_pd(inner(s), inner(t)),
         );
         SidesAnswer {
-            within: _mm256_movemask_pd(within) as u32,
             through: _mm256_movemask_pd(_mm256_and_pd(within, inside)) as u32,
-            unordered: _mm256_movemask_pd(unordered) as u32,
             s: lanes(s),
             t: lanes(t),
             distance: lanes(distance),
+            ..none_through
         }
     }
 
