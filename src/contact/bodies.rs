@@ -3303,6 +3303,20 @@ mod tests {
         assert!(triangles_apart(&a, &flat, 0.9) && !triangles_apart(&a, &flat, 1.1));
     }
 
+    /// The edge from `a0` to `a1` (nodes 0 and 1 of body 0), as [`EdgeAtEnd::of`] takes it.
+    #[cfg(target_arch = "x86_64")]
+    fn edge_from(a0: Vec3, a1: Vec3) -> EdgeAtEnd {
+        EdgeAtEnd {
+            refs: [0, 1].map(|node| NodeRef { body: 0, node }),
+            a0,
+            a1,
+            d1: a1 - a0,
+            length2: (a1 - a0).norm_squared(),
+            low: a0.inf(&a1),
+            high: a0.sup(&a1),
+        }
+    }
+
     #[test]
     fn four_sides_at_a_time_answer_the_first_checks_and_nearest_points_as_one_at_a_time() {
         #[cfg(target_arch = "x86_64")]
@@ -3325,16 +3339,7 @@ mod tests {
                     2 => p[5].y = f64::NAN,
                     _ => {}
                 }
-                let refs = [0, 1].map(|node| NodeRef { body: 0, node });
-                let edge = EdgeAtEnd {
-                    refs,
-                    a0: p[0],
-                    a1: p[1],
-                    d1: p[1] - p[0],
-                    length2: (p[1] - p[0]).norm_squared(),
-                    low: p[0].inf(&p[1]),
-                    high: p[0].sup(&p[1]),
-                };
+                let edge = edge_from(p[0], p[1]);
                 if edge.length2.is_nan() || edge.length2 <= f64::MIN_POSITIVE {
                     continue;
                 }
@@ -3395,16 +3400,7 @@ mod tests {
             }
             // The edge along x at height 0.5 mm, crossing the y axis at its middle; each side
             // along y, through the origin at parameter t.
-            let (a0, a1) = (Vec3::new(-1e-3, 0.0, 5e-4), Vec3::new(1e-3, 0.0, 5e-4));
-            let edge = EdgeAtEnd {
-                refs: [0, 1].map(|node| NodeRef { body: 0, node }),
-                a0,
-                a1,
-                d1: a1 - a0,
-                length2: (a1 - a0).norm_squared(),
-                low: a0.inf(&a1),
-                high: a0.sup(&a1),
-            };
+            let edge = edge_from(Vec3::new(-1e-3, 0.0, 5e-4), Vec3::new(1e-3, 0.0, 5e-4));
             let mut parameters = Vec::new();
             for margin in [EDGE_INNER, 0.5 * EDGE_INNER] {
                 for relative in [-1e-3, -1e-9, 0.0, 1e-9, 1e-3] {
