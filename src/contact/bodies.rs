@@ -768,12 +768,12 @@ pub fn resolve_body_collisions(
                 let fresh = round == 0 && anchored == [true; 2] && anchored_at == [net_tick; 2];
                 // Else, while they hold, the triangle pairs whose own gap exceeds the excursions
                 // are passed over (not a number: not known, taken).
-                let held = held && !fresh;
+                let by_pair_gap = held && !fresh;
                 let (mut least_now, mut unordered) = (f64::INFINITY, false);
                 // (Consecutive pairs often share their first triangle: its box is taken once.)
                 let mut box_a = (u32::MAX, Aabb::empty());
                 for (&(ta, tb), pair_gap) in kept.iter().zip(gaps.iter_mut()) {
-                    if held && *pair_gap > apart {
+                    if by_pair_gap && *pair_gap > apart {
                         continue;
                     }
                     if ta != box_a.0 {
