@@ -2035,10 +2035,18 @@ pub fn respond_to_body_contacts(
     scratch.contact_nodes.clear();
     let solver_nodes = &mut scratch.solver_nodes;
     let mut kept = 0;
+    // The pair's coefficient, taken once for each run of contacts of the same pair of bodies.
+    let mut pair_friction = ((usize::MAX, usize::MAX), 0.0);
     for k in 0..scratch.contacts.len() {
         let mut c = scratch.contacts[k];
         let (a, b) = (c.a[0].body, c.b[0].body);
-        c.friction = (bodies[a].params.friction * bodies[b].params.friction).sqrt();
+        if pair_friction.0 != (a, b) {
+            pair_friction = (
+                (a, b),
+                (bodies[a].params.friction * bodies[b].params.friction).sqrt(),
+            );
+        }
+        c.friction = pair_friction.1;
         let mut nodes = ContactNodes::of(bodies, &c, dt);
         c.compliance = (0..nodes.count)
             .map(|i| nodes.weights[i] * nodes.weights[i] * nodes.inverse_masses[i])
@@ -2239,9 +2247,14 @@ fn warm_start(
         let mut tangent_impulse =
             last.tangent_impulse - c.normal * c.normal.dot(&last.tangent_impulse);
         let limit = c.friction * normal_impulse;
-        let size = tangent_impulse.norm();
-        if size > limit {
-            tangent_impulse *= limit / size;
+        // Well inside the cone (see `solve`): no square root needed to know it is not scaled.
+        let square = tangent_impulse.norm_squared();
+        if !(square >= f64::MIN_POSITIVE && square <= limit * limit * (1.0 - BOUND_ROUNDING)) {
+            // (nalgebra's norm: the square root of this square.)
+            let size = square.sqrt();
+            if size > limit {
+                tangent_impulse *= limit / size;
+            }
         }
         c.normal_impulse = normal_impulse;
         c.tangent_impulse = tangent_impulse;
