@@ -2217,6 +2217,26 @@ fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle]) -> u32 {
 /// How far ahead of the last match [`warm_start`] looks for a contact of last tick.
 const WARM_WINDOW: usize = 16;
 
+/// Scales `tangent` back to the length `limit` where it is longer (the Coulomb cone of a warm
+/// start): `tangent × (limit / |tangent|)` when |tangent| > limit, else `tangent` as it is. Well
+/// inside (its square, a normal number, below the limit's by a relative room far above the
+/// rounding of the squares and the square root) that is known without the square root; elsewhere
+/// the length is taken and compared — the same bits either way.
+#[inline(always)]
+fn within_cone(tangent: &mut Vec3, limit: f64) {
+    let square = tangent.norm_squared();
+    // (A square that overflowed to infinity is not well inside, whatever the limit.)
+    if !((f64::MIN_POSITIVE..=f64::MAX).contains(&square)
+        && square <= limit * limit * (1.0 - BOUND_ROUNDING))
+    {
+        // (nalgebra's norm: the square root of this square.)
+        let size = square.sqrt();
+        if size > limit {
+            *tangent *= limit / size;
+        }
+    }
+}
+
 /// Starts each contact that was in last tick's list `warm` (the same nodes on both sides, of bodies
 /// whose topology versions are those of `versions`) from last tick's accumulated impulses, applied
 /// to its nodes: the normal one as it was, the tangential one on this tick's tangent plane and
@@ -2246,16 +2266,7 @@ fn warm_start(
         let normal_impulse = last.normal_impulse;
         let mut tangent_impulse =
             last.tangent_impulse - c.normal * c.normal.dot(&last.tangent_impulse);
-        let limit = c.friction * normal_impulse;
-        // Well inside the cone (see `solve`): no square root needed to know it is not scaled.
-        let square = tangent_impulse.norm_squared();
-        if !(square >= f64::MIN_POSITIVE && square <= limit * limit * (1.0 - BOUND_ROUNDING)) {
-            // (nalgebra's norm: the square root of this square.)
-            let size = square.sqrt();
-            if size > limit {
-                tangent_impulse *= limit / size;
-            }
-        }
+        within_cone(&mut tangent_impulse, c.friction * normal_impulse);
         c.normal_impulse = normal_impulse;
         c.tangent_impulse = tangent_impulse;
         let impulse = c.normal * normal_impulse + tangent_impulse;
@@ -3128,8 +3139,9 @@ fn solve(
             // bit. Well inside (its square, a normal number, below the limit's by a relative room
             // far above the rounding of the squares and the square root) the factor is 1 with
             // neither the square root nor the division: a sticking contact's usual case, the same
-            // bits. (A square below the normal numbers may have lost the relative precision: the
-            // whole computation then.)
+            // bits. (A square below the normal numbers may have lost the relative precision, and
+            // one that overflowed is not well inside whatever the limit: the whole computation
+            // then.)
             let square = tangent.norm_squared();
             if limit == 0.0 && square > 0.0 {
                 // No normal impulse, no friction: for a size above zero (the square is, and is a
@@ -3137,7 +3149,7 @@ fn solve(
                 // minimum with 1: the same product with neither the square root nor the division
                 // (a contact within the skin that does not press, most of a stack's updates).
                 tangent *= limit;
-            } else if !(square >= f64::MIN_POSITIVE
+            } else if !((f64::MIN_POSITIVE..=f64::MAX).contains(&square)
                 && square <= limit * limit * (1.0 - BOUND_ROUNDING))
             {
                 // (nalgebra's norm: the square root of this square.)
@@ -3456,6 +3468,70 @@ mod tests {
                 "{through} through, {turned_down} not"
             );
         }
+    }
+
+    #[test]
+    fn the_cone_check_without_a_square_root_gives_the_bits_of_the_plain_one() {
+        // The plain check: the length taken every time.
+        let plain = |t: Vec3, limit: f64| {
+            let size = t.norm();
+            if size > limit { t * (limit / size) } else { t }
+        };
+        let same = |a: &Vec3, b: &Vec3| {
+            a.iter()
+                .zip(b.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        let directions = points(7, 64);
+        let mut checked = 0;
+        for (k, d) in directions.iter().enumerate() {
+            let d = *d;
+            if d.norm() == 0.0 {
+                continue;
+            }
+            // Lengths at the limit, next to it on both sides by a few ulps and by the room of the
+            // check, well inside and well outside, and the limits of the numbers.
+            let limit = 1e-3 * (1.0 + k as f64);
+            let unit = d / d.norm();
+            let mut lengths = vec![0.0, 0.5 * limit, 2.0 * limit, limit];
+            for f in [1.0 - 2e-6, 1.0 - 1e-6, 1.0 - 5e-7, 1.0 + 1e-6] {
+                lengths.push(limit * f);
+            }
+            let mut up = limit;
+            let mut down = limit;
+            for _ in 0..4 {
+                up = up.next_up();
+                down = down.next_down();
+                lengths.push(up);
+                lengths.push(down);
+            }
+            for length in lengths {
+                let t = unit * length;
+                let mut fast = t;
+                within_cone(&mut fast, limit);
+                assert!(same(&fast, &plain(t, limit)), "{t:?} against {limit}");
+                checked += 1;
+            }
+        }
+        for (t, limit) in [
+            (Vec3::new(1e-200, 0.0, 0.0), 1e-200),
+            (Vec3::new(1e-160, 1e-160, 0.0), 1e-160),
+            (Vec3::new(3.0, 4.0, 0.0), 0.0),
+            (Vec3::new(f64::NAN, 0.0, 0.0), 1.0),
+            (Vec3::new(1.0, 0.0, 0.0), f64::INFINITY),
+            (Vec3::new(1e300, 1e300, 0.0), 1e300),
+        ] {
+            let mut fast = t;
+            within_cone(&mut fast, limit);
+            let expected = plain(t, limit);
+            assert!(
+                same(&fast, &expected)
+                    || (fast.iter().any(|x| x.is_nan()) && expected.iter().any(|x| x.is_nan())),
+                "{t:?} against {limit}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 1000);
     }
 
     #[test]
