@@ -2217,23 +2217,27 @@ fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle]) -> u32 {
 /// How far ahead of the last match [`warm_start`] looks for a contact of last tick.
 const WARM_WINDOW: usize = 16;
 
-/// Scales `tangent` back to the length `limit` where it is longer (the Coulomb cone of a warm
-/// start): `tangent × (limit / |tangent|)` when |tangent| > limit, else `tangent` as it is. Well
-/// inside (its square, a normal number, below the limit's by a relative room far above the
-/// rounding of the squares and the square root) that is known without the square root; elsewhere
-/// the length is taken and compared — the same bits either way.
+/// Scales `tangent` back into the Coulomb cone of the limit `limit`: `tangent × min(limit /
+/// |tangent|, 1)`, which is `tangent` to the bit inside (limit / |tangent| ≥ 1, or not a number:
+/// 0 / 0). Two cases skip the square root and the division, with the same bits:
+/// - no limit (no normal impulse, no friction) and a length above zero: limit / |tangent| is the
+///   limit itself, a zero of its sign, and so is its minimum with 1 (a contact within the skin that
+///   does not press, most of a stack's updates);
+/// - well inside: the square, a normal number, below the limit's by a relative room far above the
+///   rounding of the squares and the square root (a sticking contact's usual case). A square below
+///   the normal numbers may have lost the relative precision, and one that overflowed is not well
+///   inside whatever the limit: the whole computation then.
 #[inline(always)]
 fn within_cone(tangent: &mut Vec3, limit: f64) {
     let square = tangent.norm_squared();
-    // (A square that overflowed to infinity is not well inside, whatever the limit.)
-    if !((f64::MIN_POSITIVE..=f64::MAX).contains(&square)
+    if limit == 0.0 && square > 0.0 {
+        *tangent *= limit;
+    } else if !((f64::MIN_POSITIVE..=f64::MAX).contains(&square)
         && square <= limit * limit * (1.0 - BOUND_ROUNDING))
     {
         // (nalgebra's norm: the square root of this square.)
         let size = square.sqrt();
-        if size > limit {
-            *tangent *= limit / size;
-        }
+        *tangent *= (limit / size).min(1.0);
     }
 }
 
@@ -3133,29 +3137,7 @@ fn solve(
             // relative motion alone, side by side with the normal impulse.
             let slip = relative - c.normal * normal_speed;
             let mut tangent = c.tangent_impulse - slip * nodes.effective_mass;
-            let limit = c.friction * c.normal_impulse;
-            // Scaled back into the cone where it leaves it: the factor min(limit / size, 1) is 1
-            // inside (limit / size ≥ 1, or not a number: 0 / 0), and tangent × 1 is tangent to the
-            // bit. Well inside (its square, a normal number, below the limit's by a relative room
-            // far above the rounding of the squares and the square root) the factor is 1 with
-            // neither the square root nor the division: a sticking contact's usual case, the same
-            // bits. (A square below the normal numbers may have lost the relative precision, and
-            // one that overflowed is not well inside whatever the limit: the whole computation
-            // then.)
-            let square = tangent.norm_squared();
-            if limit == 0.0 && square > 0.0 {
-                // No normal impulse, no friction: for a size above zero (the square is, and is a
-                // number), limit / size is the limit itself, a zero of its sign, and so is its
-                // minimum with 1: the same product with neither the square root nor the division
-                // (a contact within the skin that does not press, most of a stack's updates).
-                tangent *= limit;
-            } else if !((f64::MIN_POSITIVE..=f64::MAX).contains(&square)
-                && square <= limit * limit * (1.0 - BOUND_ROUNDING))
-            {
-                // (nalgebra's norm: the square root of this square.)
-                let size = square.sqrt();
-                tangent *= (limit / size).min(1.0);
-            }
+            within_cone(&mut tangent, c.friction * c.normal_impulse);
             let tangent_change = tangent - c.tangent_impulse;
             c.tangent_impulse = tangent;
             nodes.idle = normal_change == 0.0 && tangent_change == Vec3::zeros();
@@ -3472,11 +3454,8 @@ mod tests {
 
     #[test]
     fn the_cone_check_without_a_square_root_gives_the_bits_of_the_plain_one() {
-        // The plain check: the length taken every time.
-        let plain = |t: Vec3, limit: f64| {
-            let size = t.norm();
-            if size > limit { t * (limit / size) } else { t }
-        };
+        // The plain check: the length and the factor taken every time.
+        let plain = |t: Vec3, limit: f64| t * (limit / t.norm()).min(1.0);
         let same = |a: &Vec3, b: &Vec3| {
             a.iter()
                 .zip(b.iter())
