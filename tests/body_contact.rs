@@ -205,9 +205,9 @@ fn a_block_on_a_tilted_body_sticks_or_slides_with_coulomb_friction() {
 }
 
 /// An organ resting on another, pressed by a probe: it stays on the lower one and comes to rest
-/// (kinetic energy below 1e-5 J at tick 3 499, 1.42 s after the probe left; the largest of the
-/// ticks from 1 s after it is printed, not asserted: single-tick spikes of one node reach 1.7e-5
-/// and 2.0e-5 J there, see the README); no node of either is ever
+/// (kinetic energy below 1e-5 J at every tick from 1 s after the probe left, and at tick 3 499;
+/// before the held contacts, single ticks in which one node fell reached 1.7e-5 and 2.0e-5 J
+/// there, see the README); no node of either is ever
 /// inside the other and no surface crosses the other; the contact forces on the two organs are equal
 /// and opposite every tick; without the probe, the pair's energy never grows. With the multi-rate
 /// (default) and the implicit integrator.
@@ -276,8 +276,7 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
         if k == 3499 {
             resting_kinetic = world.bodies[1].kinetic_energy();
         }
-        // (Reported, not asserted: the largest kinetic energy of any tick from a second after the
-        // probe left; see the README, "Contact between bodies", on the single-tick spikes.)
+        // The largest kinetic energy of any tick from a second after the probe left.
         if world.tools[0].feedback.force_in_world.norm() > 0.0 {
             left_at = k;
             most_after = 0.0;
@@ -303,6 +302,10 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str) {
     assert!(
         resting_kinetic < 1e-5,
         "{integrator}: still moving: {resting_kinetic} J"
+    );
+    assert!(
+        left_at > 0 && most_after < 1e-5,
+        "{integrator}: a tick from 1 s after the probe left (tick {left_at}) moved with {most_after} J"
     );
     // Still on top of the lower organ: its centre above the lower one's top at rest (3 cm above
     // the lower's centre; slid off, it would lie on the table, below the lower's centre), within
@@ -535,10 +538,19 @@ fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
 
 /// An organ ten times as heavy (3 kg) laid on a light one (0.3 kg, the bench's organs; the heavy one
 /// the same shape, its masses, stiffnesses and dampings scaled by ten): it stays on the light one's
-/// centre. The light organ's nodes under it are thrown up by their links by more than the skin each
+/// centre, from three drop heights 0.1 mm apart or less, and the collision net has nothing to stop
+/// once it has landed (from 1 s on).
+/// The light organ's nodes under it are thrown up by their links by more than the skin each
 /// tick and end beside the heavy organ's vertices; until the response kept the contacts that start
 /// the tick over a face (`started_near`), only the collision net caught them (5 collisions a tick),
 /// and the heavy organ crept 26 mm off in 3.5 s.
+///
+/// The landing is damped (air viscosity 5 N s/m per node, not 1): undamped, the light organ is
+/// crushed to a few millimetres and throws the heavy one up by 10 mm a few times, and whether the
+/// heavy one stays on the dome or slides off it (17 to 27 mm, with a friction of 0.4) turns on
+/// 10 µm of drop height, in the code before the held contacts as after (see the README, "Ninth
+/// session"): such a test passes or fails by chance. Without friction between the bodies this one
+/// fails (18 to 66 mm off).
 #[test]
 fn an_organ_ten_times_heavier_stays_on_the_light_one() {
     let body = |name: &str, z: f64, scale: f64| {
@@ -552,36 +564,43 @@ fn an_organ_ten_times_heavier_stays_on_the_light_one() {
             0.3 * scale
         )
     };
-    let text = format!(
-        "[world]\nair_viscosity = 1.0\n[[obstacle]]\nname = \"table\"\nplane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}\nfriction = 0.5\nstatic_friction = 0.7\n{}{}",
-        body("light", 0.0155, 1.0),
-        body("heavy", 0.046, 10.0)
-    );
-    let mut world = World::from_scene(&common::scene(&text));
-    let mut collisions = 0u64;
-    for k in 1..=3500 {
-        world.step();
-        if k > 1000 {
-            collisions += u64::from(world.counters.bodies.collisions);
+    for drop in [0.0, 1e-5, 1e-4] {
+        let text = format!(
+            "[world]\nair_viscosity = 5.0\n[[obstacle]]\nname = \"table\"\nplane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}\nfriction = 0.5\nstatic_friction = 0.7\n{}{}",
+            body("light", 0.0155, 1.0),
+            body("heavy", 0.046 + drop, 10.0)
+        );
+        let mut world = World::from_scene(&common::scene(&text));
+        let mut collisions = 0u64;
+        for k in 1..=3500 {
+            world.step();
+            if k > 1000 {
+                collisions += u64::from(world.counters.bodies.collisions);
+            }
+            if k % 50 == 0 {
+                assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
+            }
         }
-        if k % 50 == 0 {
-            assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
-        }
+        let (l, h) = (
+            world.bodies[0].surface_centre_of_mass(),
+            world.bodies[1].surface_centre_of_mass(),
+        );
+        let off = (h - l).xy().norm();
+        let kinetic: f64 = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
+        println!(
+            "dropped from {:.3} mm higher: heavy organ {:.1} mm off the light one's centre at 3.5 s (centres at {:.1} and {:.1} mm), kinetic energy {kinetic:.2e} J, net collisions from 1 to 3.5 s {collisions}",
+            drop * 1e3,
+            off * 1e3,
+            l.z * 1e3,
+            h.z * 1e3
+        );
+        assert!(h.z > l.z + 0.01, "the heavy organ left the light one");
+        assert!(off < 0.005, "it slid {off} m off the centre");
+        assert_eq!(
+            collisions, 0,
+            "the net stopped what the response let through"
+        );
     }
-    let (l, h) = (
-        world.bodies[0].surface_centre_of_mass(),
-        world.bodies[1].surface_centre_of_mass(),
-    );
-    let off = (h - l).xy().norm();
-    let kinetic: f64 = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
-    println!(
-        "heavy organ {:.1} mm off the light one's centre at 3.5 s (centres at {:.1} and {:.1} mm), kinetic energy {kinetic:.2e} J, net collisions from 1 to 3.5 s {collisions}",
-        off * 1e3,
-        l.z * 1e3,
-        h.z * 1e3
-    );
-    assert!(h.z > l.z + 0.01, "the heavy organ left the light one");
-    assert!(off < 0.005, "it slid {off} m off the centre");
 }
 
 #[test]
