@@ -546,7 +546,7 @@ fn two_soft_organs_stacked_and_pressed_come_to_rest_with_few_net_collisions() {
 /// and the heavy organ crept 26 mm off in 3.5 s.
 ///
 /// The landing is damped (air viscosity 5 N s/m per node, not 1): undamped, the light organ is
-/// crushed to a few millimetres and throws the heavy one up by 10 mm a few times, and whether the
+/// pressed flat under it and throws the heavy one up by 10 to 20 mm a few times, and whether the
 /// heavy one stays on the dome or slides off it (17 to 27 mm, with a friction of 0.4) turns on
 /// 10 µm of drop height, in the code before the held contacts as after (see the README, "Ninth
 /// session"): such a test passes or fails by chance. Without friction between the bodies this one
