@@ -2052,27 +2052,22 @@ pub fn respond_to_body_contacts(
     // the order of this tick's lists (see `warm_start`): the two runs of last tick's list (the
     // nearest contacts, then the held ones) are each walked alongside this tick's contacts.
     let held_from = scratch.contacts.len();
-    let unchanged = |k: usize| scratch.warm_versions.get(k) == Some(&bodies[k].topology_version);
+    let unchanged = |k: usize| same_topology(&scratch.warm_versions, bodies, k);
     for part in [0..scratch.warm_held, scratch.warm_held..scratch.warm.len()] {
         let mut cursor = 0;
         for w in &scratch.warm[part] {
+            // (Impulses are never below zero nor not a number.)
             if w.a[0] == w.a[1]
-                || w.normal_impulse.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+                || w.normal_impulse <= 0.0
                 || !unchanged(w.a[0].body)
                 || !unchanged(w.b[0].body)
             {
                 continue;
             }
-            let ahead =
-                &scratch.contacts[cursor.min(held_from)..(cursor + WARM_WINDOW).min(held_from)];
-            let Some(found) = ahead
-                .iter()
-                .position(|c| c.a == w.a && c.b[0].body == w.b[0].body)
-            else {
-                continue;
-            };
-            cursor += found + 1;
-            if ahead[found].b == w.b {
+            let nearest = next_match(&scratch.contacts[..held_from], &mut cursor, |c| {
+                c.a == w.a && c.b[0].body == w.b[0].body
+            });
+            if nearest.is_none_or(|c| c.b == w.b) {
                 continue;
             }
             let edge = EdgeAtEnd::of(bodies, w.a);
@@ -2285,6 +2280,26 @@ fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle]) -> u32 {
 /// How far ahead of the last match [`warm_start`] looks for a contact of last tick.
 const WARM_WINDOW: usize = 16;
 
+/// Whether body `k` has the topology version it had in `versions` (last tick's): its node indices
+/// still name the same nodes.
+fn same_topology(versions: &[u64], bodies: &[Body], k: usize) -> bool {
+    versions.get(k) == Some(&bodies[k].topology_version)
+}
+
+/// The first entry of `list` among the [`WARM_WINDOW`] from `*cursor` on that `matches`, the
+/// cursor moved past it: a walk of last tick's contacts alongside this tick's, which come in the
+/// same relative order (see [`warm_start`]).
+fn next_match<'a, T>(
+    list: &'a [T],
+    cursor: &mut usize,
+    matches: impl Fn(&T) -> bool,
+) -> Option<&'a T> {
+    let ahead = &list[(*cursor).min(list.len())..(*cursor + WARM_WINDOW).min(list.len())];
+    let found = ahead.iter().position(matches)?;
+    *cursor += found + 1;
+    Some(&ahead[found])
+}
+
 /// Share of last tick's normal impulse a held contact may take (see the response's held
 /// contacts): the support of a side an edge no longer has nearest goes in halves. (A quarter:
 /// single ticks of 8e-6 and 1.2e-5 J in the pressed pair of `tests/body_contact.rs`, against
@@ -2329,18 +2344,15 @@ fn warm_start(
     solver_nodes: &mut SolverNodes,
     dt: f64,
 ) {
-    let unchanged = |k: usize| versions.get(k) == Some(&bodies[k].topology_version);
+    let unchanged = |k: usize| same_topology(versions, bodies, k);
     let mut next = 0;
     for (c, nodes) in contacts.iter_mut().zip(contact_nodes.iter_mut()) {
         if c.compliance <= 0.0 || !unchanged(c.a[0].body) || !unchanged(c.b[0].body) {
             continue;
         }
-        let ahead = &warm[next.min(warm.len())..(next + WARM_WINDOW).min(warm.len())];
-        let Some(found) = ahead.iter().position(|w| w.a == c.a && w.b == c.b) else {
+        let Some(&last) = next_match(warm, &mut next, |w| w.a == c.a && w.b == c.b) else {
             continue;
         };
-        let last = ahead[found];
-        next += found + 1;
         let normal_impulse = last.normal_impulse.min(c.cap);
         let mut tangent_impulse =
             last.tangent_impulse - c.normal * c.normal.dot(&last.tangent_impulse);
