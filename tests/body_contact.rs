@@ -902,3 +902,70 @@ fn a_world_cloned_mid_run_steps_on_to_the_same_bits() {
         "{contacts} contacts: the organs do not touch"
     );
 }
+
+/// A body that may be torn or cut (its scratch keeps room for the pieces it may become) resting on
+/// another: the collision net's per-node records of the spare bodies have no body yet, and the net
+/// indexed the bodies near with them (a panic, index out of bounds, on the first tick the two came
+/// within the skin). Both the tearing and the cutting case rest like any stack, no node inside the
+/// other body.
+#[test]
+fn bodies_that_may_be_torn_or_cut_touch_others_like_any_body() {
+    let pair = |extra: &str, tool: &str| {
+        format!(
+            r#"
+            [[obstacle]]
+            name = "table"
+            plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+            [[body]]
+            name = "a"
+            mesh = {{ ellipsoid = {{ radii = [0.03, 0.025, 0.01], subdivisions = 2 }} }}
+            position = [0.0, 0.0, 0.0101]
+            surface_mass = 0.05
+            rigid_mass = 0.1
+            [[body]]
+            name = "b"
+            mesh = {{ ellipsoid = {{ radii = [0.03, 0.025, 0.01], subdivisions = 2 }} }}
+            position = [0.0, 0.0, 0.0305]
+            surface_mass = 0.05
+            rigid_mass = 0.1
+            {extra}
+            {tool}
+            "#
+        )
+    };
+    let blade_far_away = r#"
+        [[tool]]
+        name = "scalpel"
+        shape = { blade = { length = 0.03, thickness = 0.0005 } }
+        script = [ { t = 0.0, position = [0.3, 0.3, 0.3] } ]
+    "#;
+    for (case, text) in [
+        ("tearing", pair("tearing = { strain = 1000.0 }", "")),
+        ("cutting", pair("cutting = {}", blade_far_away)),
+    ] {
+        let mut world = World::from_scene(&common::scene(&text));
+        let mut contacts = 0u64;
+        for k in 1..=1000 {
+            world.step();
+            contacts += u64::from(world.counters.bodies.contacts);
+            if k % 50 == 0 {
+                assert_eq!(common::nodes_inside_others(&world), 0, "{case}, tick {k}");
+            }
+        }
+        let (a, b) = (
+            world.bodies[0].surface_centre_of_mass(),
+            world.bodies[1].surface_centre_of_mass(),
+        );
+        println!(
+            "{case}: {} bodies, upper organ's centre {:.1} mm above the lower's, {:.1} mm off it; {contacts} contacts over 1 s",
+            world.bodies.len(),
+            (b - a).z * 1e3,
+            (b - a).xy().norm() * 1e3
+        );
+        assert!(contacts > 1000, "{case}: the bodies never touched");
+        assert!(
+            (b - a).z > 0.01 && (b - a).xy().norm() < 0.005,
+            "{case}: the upper organ left the lower"
+        );
+    }
+}

@@ -712,8 +712,10 @@ pub fn resolve_body_collisions(
             // Room to follow which nodes' collisions the rounds answer (else every round tests
             // every pair).
             skipping = true;
+            // (`near` has an entry per body there is; `answered` also has room for the pieces
+            // transections and tears may make.)
             for (k, answered) in scratch.answered.iter_mut().enumerate() {
-                if scratch.near[k] {
+                if scratch.near.get(k) == Some(&true) {
                     answered.clear();
                     let n = bodies[k].node_count();
                     if n <= answered.capacity() {
