@@ -973,3 +973,88 @@ fn bodies_that_may_be_torn_or_cut_touch_others_like_any_body() {
         );
     }
 }
+
+/// The total momentum of the surface nodes and rigid components of every body (N s).
+fn total_momentum(world: &World) -> palpa::Vec3 {
+    let mut p = palpa::Vec3::zeros();
+    for b in &world.bodies {
+        for (m, v) in b.surface.mass.iter().zip(&b.surface.velocity_in_world) {
+            p += v * *m;
+        }
+        p += b.rigid.velocity_in_world * b.rigid.mass;
+    }
+    p
+}
+
+/// Newton's third law in a collision: two bodies of unequal masses (1.2 and 0.25 kg) thrown at each
+/// other in zero gravity, head on at 1 and 2 m/s each way (up to 4 mm a tick closing, past the skin:
+/// the collision net answers hundreds of crossings a tick) and off-centre with the heavy one
+/// spinning, keep their total momentum through the collision: with the symplectic integrator to
+/// rounding (3e-14 N s of 1.9), with the implicit one to 3e-9 (asserted below 1e-8: its linear
+/// solve's tolerance). The net used to stop each node of a collision with its own displacement's
+/// velocity, which stopped the heavy organ's nodes as often as the light one's: the pair came apart
+/// with its total momentum reversed (1.90 to −1.31 N s, symplectic). The multi-rate integrator
+/// loses 5 to 9 % of it over the 0.15 s (its sub-stepped nodes end a tick the response pushed them
+/// with their displacement's velocity, a reset that is not shared between the two bodies, and its
+/// slow and fast nodes meet in the springs at different rates); printed, not asserted (see the
+/// README).
+#[test]
+fn two_bodies_colliding_in_zero_gravity_keep_their_total_momentum() {
+    let scene = |integrator: &str, speed: f64, spin: f64| {
+        format!(
+            r#"
+            [world]
+            gravity = [0.0, 0.0, 0.0]
+            integrator = "{integrator}"
+            [[body]]
+            name = "heavy"
+            mesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.03], subdivisions = 3 }} }}
+            position = [-0.1, 0.0, 0.0]
+            velocity = [{speed:?}, 0.0, 0.0]
+            angular_velocity = [0.0, 0.0, {spin:?}]
+            [[body]]
+            name = "light"
+            mesh = {{ icosphere = {{ radius = 0.03, subdivisions = 2 }} }}
+            position = [0.1, 0.005, 0.0]
+            velocity = [{:?}, 0.0, 0.0]
+            surface_mass = 0.05
+            rigid_mass = 0.2
+            "#,
+            -speed
+        )
+    };
+    for integrator in ["symplectic", "implicit", "multirate"] {
+        for (speed, spin) in [(1.0, 0.0), (2.0, 0.0), (2.0, 20.0)] {
+            let mut world = World::from_scene(&common::scene(&scene(integrator, speed, spin)));
+            let before = total_momentum(&world);
+            let (mut collisions, mut contacts) = (0u64, 0u64);
+            for k in 1..=150 {
+                world.step();
+                collisions += u64::from(world.counters.bodies.collisions);
+                contacts += u64::from(world.counters.bodies.contacts);
+                if k % 50 == 0 {
+                    assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
+                }
+            }
+            let after = total_momentum(&world);
+            let change = (after - before).norm();
+            println!(
+                "{integrator}, {speed} m/s, spin {spin} rad/s: momentum {:.4?} -> {:.4?} N s (change {change:.2e}); {contacts} contacts, {collisions} net collisions over 0.15 s; velocities {:.3} and {:.3} m/s",
+                before.as_slice(),
+                after.as_slice(),
+                world.bodies[0].rigid.velocity_in_world.x,
+                world.bodies[1].rigid.velocity_in_world.x
+            );
+            assert!(collisions > 0 && contacts > 0, "they never met");
+            let bound = match integrator {
+                "symplectic" => 1e-12,
+                "implicit" => 1e-8,
+                _ => f64::INFINITY,
+            };
+            assert!(
+                change < bound,
+                "{integrator}: the momentum changed by {change} N s"
+            );
+        }
+    }
+}
