@@ -1326,6 +1326,7 @@ impl World {
             .filter(|w| w.is_finite())
             .map(f64::abs)
             .sum();
+        let several = self.bodies.len() > 1;
         for (b, ((((body, guard), kernel), refinement), cutter)) in self
             .bodies
             .iter_mut()
@@ -1362,6 +1363,7 @@ impl World {
             } else {
                 kernel.energy
             };
+            guard.keep_start = several && !refined_now;
             if guard.check(body, Some(energy)).is_some() {
                 counters.guard_events += 1;
                 // The restored shape may cross an obstacle the deformed one was resting on.

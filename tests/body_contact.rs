@@ -1058,3 +1058,34 @@ fn two_bodies_colliding_in_zero_gravity_keep_their_total_momentum() {
         }
     }
 }
+
+/// The divergence guard, restoring a body that touches others, puts its nodes back where they
+/// started the step, not onto its rigid component's rest shape: two default organs stacked (the
+/// lower one pressed flat by the upper), one node of the lower one given 500 m/s (a glitch past the
+/// guard's speed limit): the guard acts, and no node of either organ is inside the other then or
+/// over the next half second. Snapped onto its rest shape, the lower organ rose into the upper one
+/// (the hard presses of a probe that ended with two organs crossed: the guard had acted).
+#[test]
+fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
+    let mut world = World::from_scene(&common::scene(SOFT_PAIR));
+    for _ in 0..1500 {
+        world.step();
+    }
+    assert_eq!(common::nodes_inside_others(&world), 0);
+    let glitch = world.bodies[0].surface.mass.len() / 2;
+    world.bodies[0].surface.velocity_in_world[glitch] = palpa::Vec3::new(0.0, 0.0, 500.0);
+    world.step();
+    assert_eq!(world.counters.guard_events, 1, "the guard did not act");
+    let mut worst = common::nodes_inside_others(&world);
+    for k in 1..=500 {
+        world.step();
+        if k % 10 == 0 {
+            worst = worst.max(common::nodes_inside_others(&world));
+        }
+    }
+    println!(
+        "guard events {:?}; nodes inside the other organ at most {worst}",
+        world.guards.iter().map(|g| g.events).collect::<Vec<_>>()
+    );
+    assert_eq!(worst, 0, "the restore left the organs crossed");
+}

@@ -51,6 +51,11 @@ pub struct Guard {
     /// stability limit, which can gain energy within a tick); otherwise the caller checks the energy
     /// the force stage measured at the start of the step, one step behind.
     pub energy_at_end: bool,
+    /// Restore the nodes to where they started the step instead of onto the rigid component's
+    /// shape (set by the world for a step that did not change the body's topology when other bodies
+    /// may touch it: the rest shape of an organ pressed flat by another lies inside that one, and
+    /// snapping onto it left the two crossed for good).
+    pub keep_start: bool,
     /// The budget was taken from the state the first step started from.
     started: bool,
     size: f64,
@@ -180,6 +185,7 @@ impl Guard {
             last_cause: None,
             acted: false,
             energy_at_end: false,
+            keep_start: false,
             started: false,
             size: (hi - lo).norm().max(MIN_SIZE),
             budget: body_energy(body, gravity),
@@ -327,8 +333,14 @@ impl Guard {
         for i in 0..s.mass.len() {
             let arm = world_from_body * s.homologue_in_body[i];
             let h = r.position_in_world + arm;
-            s.position_in_world[i] = h;
-            s.next_position_in_world[i] = h;
+            // (After the commit, `next_position_in_world` holds where the step started.)
+            let x = if self.keep_start {
+                s.next_position_in_world[i]
+            } else {
+                h
+            };
+            s.position_in_world[i] = x;
+            s.next_position_in_world[i] = x;
             s.homologue_in_world[i] = h;
             s.velocity_in_world[i] = r.velocity_in_world + omega.cross(&arm);
             s.force_in_world[i] = Vec3::zeros();
