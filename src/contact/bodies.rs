@@ -1946,10 +1946,10 @@ pub fn respond_to_body_contacts(
                     {
                         // The nearest face with a contact is passed over for the next one when
                         // the vertex started the tick behind it (on the inside of its plane), and
-                        // taken only if no other gives a contact. Where a soft organ is pressed flat its two
-                        // sheets lie closer than the skin: a vertex resting on the upper sheet,
-                        // pushed a little into it over the tick, ends nearer the lower sheet,
-                        // behind which it also is. Its contact with that sheet pushed it out
+                        // taken only if no other gives a contact. Where a soft organ is pressed
+                        // flat its two sheets lie closer than the skin: a vertex resting on the
+                        // upper sheet, pushed a little into it over the tick, ends nearer the
+                        // lower sheet, behind which it also is. Its contact with that sheet pushed it out
                         // through the upper one, and the collision net stopped it at its start
                         // every tick (19 a tick in two default organs stacked), so that the
                         // organs never came to rest. (Passing over every face the vertex started

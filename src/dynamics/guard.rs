@@ -52,7 +52,7 @@ pub struct Guard {
     /// the force stage measured at the start of the step, one step behind.
     pub energy_at_end: bool,
     /// Restore the nodes to where they started the step instead of onto the rigid component's
-    /// shape (set by the world for a step that did not change the body's topology when other bodies
+    /// shape, unless the energy was what the guard found wrong (set by the world for a step that did not change the body's topology when other bodies
     /// may touch it: the rest shape of an organ pressed flat by another lies inside that one, and
     /// snapping onto it left the two crossed for good).
     pub keep_start: bool,
@@ -263,7 +263,7 @@ impl Guard {
                 None
             }
             Some(cause) => {
-                self.restore(body);
+                self.restore(body, cause);
                 self.events += 1;
                 self.last_cause = Some(cause);
                 self.acted = true;
@@ -309,23 +309,26 @@ impl Guard {
 
     /// The last good rigid component, the nodes on it moving with it; stopped if that motion holds
     /// more energy than the budget allows.
-    fn restore(&mut self, body: &mut Body) {
+    fn restore(&mut self, body: &mut Body, cause: GuardCause) {
         // Forces are a step's scratch: keep the current ones, restore the state.
         let (force, torque) = (body.rigid.force_in_world, body.rigid.torque_in_world);
         body.rigid.clone_from(&self.last_good_rigid);
         body.rigid.force_in_world = force;
         body.rigid.torque_in_world = torque;
-        self.snap_nodes(body);
+        // Where the step started, unless that state is the one over the energy budget (the energy
+        // checked is the one the force stage measured at the start of the step).
+        let keep_start = self.keep_start && cause != GuardCause::Energy;
+        self.snap_nodes(body, keep_start);
         let allowed = self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J;
         let energy = body_energy(body, &self.gravity);
         if !energy.is_finite() || energy > allowed {
             body.rigid.velocity_in_world = Vec3::zeros();
             body.rigid.angular_momentum_in_world = Vec3::zeros();
-            self.snap_nodes(body);
+            self.snap_nodes(body, keep_start);
         }
     }
 
-    fn snap_nodes(&self, body: &mut Body) {
+    fn snap_nodes(&self, body: &mut Body, keep_start: bool) {
         let r = &body.rigid;
         let world_from_body = r.world_from_body.to_rotation_matrix();
         let omega = r.angular_velocity_in_world();
@@ -334,7 +337,7 @@ impl Guard {
             let arm = world_from_body * s.homologue_in_body[i];
             let h = r.position_in_world + arm;
             // (After the commit, `next_position_in_world` holds where the step started.)
-            let x = if self.keep_start {
+            let x = if keep_start {
                 s.next_position_in_world[i]
             } else {
                 h
