@@ -243,7 +243,15 @@ fn bad_attachments_are_refused_with_their_position() {
     );
     refused(
         "[[attachment]]\nbody = \"a\"\nat = [0.0, 0.0, 0.03]\nstiffness = 1e6",
-        "too stiff",
+        "too stiff for",
+    );
+    refused(
+        "[[attachment]]\nbody = \"a\"\nat = [0.0, 0.0, 0.03]\ndamping = 1e3",
+        "too damped for",
+    );
+    refused(
+        "[[attachment]]\nbody = \"a\"\nat = [0.0, 0.0, 0.03]\nstiffness = 1e6\ndamping = 1e3",
+        "too stiff and too damped",
     );
     refused("[[attachment]]\nbody = \"a\"", "needs `at`");
     refused(

@@ -1203,12 +1203,22 @@ impl Ctx<'_> {
                 worst_damping = worst_damping.max(c / m * dt);
             }
         }
-        if worst > ATTACHMENT_STEP_LIMIT || worst_damping > ATTACHMENT_STEP_LIMIT {
-            let span = a.stiffness.as_ref().map_or(table.span(), |s| s.span());
+        let (stiff, damped) = (
+            worst > ATTACHMENT_STEP_LIMIT,
+            worst_damping > ATTACHMENT_STEP_LIMIT,
+        );
+        if stiff || damped {
+            // The error points at the key to lower (the stiffness when both are past the limit).
+            let (what, key) = match (stiff, damped) {
+                (true, true) => ("too stiff and too damped", a.stiffness.as_ref()),
+                (true, false) => ("too stiff", a.stiffness.as_ref()),
+                _ => ("too damped", a.damping.as_ref()),
+            };
+            let span = key.map_or(table.span(), |s| s.span());
             return Err(self.error(
                 span,
                 format!(
-                    "attachment `{name}` is too stiff for dt = {dt} s on the nodes it ties: √(k/m)·dt = {worst:.3} and (c/m)·dt = {worst_damping:.3}, both must be at most {ATTACHMENT_STEP_LIMIT} (lower `stiffness` or `damping`, or widen `radius`)"
+                    "attachment `{name}` is {what} for dt = {dt} s on the nodes it ties: √(k/m)·dt = {worst:.3} and (c/m)·dt = {worst_damping:.3}, both must be at most {ATTACHMENT_STEP_LIMIT} (lower `stiffness` or `damping`, or widen `radius`)"
                 ),
             ));
         }
