@@ -978,10 +978,7 @@ fn bodies_that_may_be_torn_or_cut_touch_others_like_any_body() {
 fn total_momentum(world: &World) -> palpa::Vec3 {
     let mut p = palpa::Vec3::zeros();
     for b in &world.bodies {
-        for (m, v) in b.surface.mass.iter().zip(&b.surface.velocity_in_world) {
-            p += v * *m;
-        }
-        p += b.rigid.velocity_in_world * b.rigid.mass;
+        p += common::surface_momentum(b) + b.rigid.velocity_in_world * b.rigid.mass;
     }
     p
 }

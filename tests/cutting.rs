@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::Rng;
+use common::{Rng, surface_momentum as momentum};
 use palpa::Vec3;
 use palpa::body::{Body, BodyParams, Placement};
 use palpa::collision::tool::closest_point_on_triangle;
@@ -34,14 +34,6 @@ fn cutting_body(mesh: &SurfaceMesh, max_nodes: usize, moving: bool) -> Body {
     let mut body = Body::new("organ", mesh, &params, &placement);
     body.reserve_room();
     body
-}
-
-fn momentum(body: &Body) -> Vec3 {
-    let s = &body.surface;
-    s.velocity_in_world
-        .iter()
-        .zip(&s.mass)
-        .fold(Vec3::zeros(), |acc, (v, m)| acc + v * *m)
 }
 
 /// What must hold after every cut step: a manifold of good triangles, conservation.

@@ -3,6 +3,9 @@
 //! positive, inserting a node moves neither the centre of mass nor the linear momentum (1e-12), and
 //! coarsening everything restores the original mesh exactly.
 
+mod common;
+
+use common::surface_momentum as momentum;
 use palpa::Vec3;
 use palpa::body::{Body, BodyParams, Placement};
 use palpa::scene::mesh::icosphere;
@@ -32,15 +35,6 @@ fn moving_body() -> Body {
         body.surface.inverse_mass[i] = 1.0 / body.surface.mass[i];
     }
     body
-}
-
-fn momentum(b: &Body) -> Vec3 {
-    b.surface
-        .velocity_in_world
-        .iter()
-        .zip(&b.surface.mass)
-        .map(|(v, m)| v * *m)
-        .sum()
 }
 
 #[test]

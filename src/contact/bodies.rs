@@ -506,8 +506,9 @@ fn end_of(bodies: &[Body], r: NodeRef) -> Vec3 {
     bodies[r.body].surface.next_position_in_world[r.node]
 }
 
-/// Stops a node at `fraction` of its trajectory (tool-held nodes are left to the tool).
-fn stop_at(bodies: &mut [Body], r: NodeRef, fraction: f64, dt: f64) {
+/// Stops a node at `fraction` of its trajectory, leaving it with `velocity` or, when `None`, with
+/// its shortened displacement's (tool-held nodes are left to the tool).
+fn stop_at(bodies: &mut [Body], r: NodeRef, fraction: f64, velocity: Option<Vec3>, dt: f64) {
     let s = &mut bodies[r.body].surface;
     if s.tool_contact[r.node].tool != NO_TOOL {
         return;
@@ -515,7 +516,7 @@ fn stop_at(bodies: &mut [Body], r: NodeRef, fraction: f64, dt: f64) {
     let start = s.position_in_world[r.node];
     let end = start + (s.next_position_in_world[r.node] - start) * fraction;
     s.next_position_in_world[r.node] = end;
-    s.velocity_in_world[r.node] = (end - start) / dt;
+    s.velocity_in_world[r.node] = velocity.unwrap_or((end - start) / dt);
 }
 
 /// Distance between the two primitives and a signed measure of which side of each other they are on
@@ -643,12 +644,7 @@ fn test_primitive(
     // light one's.)
     let together = mean_velocity(bodies, &nodes);
     for r in nodes {
-        stop_at(bodies, r, fraction, dt);
-    }
-    if let Some(velocity) = together {
-        for r in nodes {
-            bodies[r.body].surface.velocity_in_world[r.node] = velocity;
-        }
+        stop_at(bodies, r, fraction, together, dt);
     }
     true
 }

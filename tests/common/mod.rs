@@ -268,6 +268,15 @@ pub fn total_energy<'a>(
         .sum()
 }
 
+/// The momentum of a body's surface nodes (N s; the rigid component's not included).
+pub fn surface_momentum(body: &palpa::body::Body) -> palpa::Vec3 {
+    let s = &body.surface;
+    s.velocity_in_world
+        .iter()
+        .zip(&s.mass)
+        .fold(palpa::Vec3::zeros(), |acc, (v, m)| acc + v * *m)
+}
+
 /// Least-squares acceleration of s(t) = s0 + v0 t + a t²/2.
 pub fn fitted_acceleration(times: &[f64], s: &[f64]) -> f64 {
     // Normal equations for [1, t, t²/2].
