@@ -454,45 +454,86 @@ const SOFT_PAIR: &str = r#"
     position = [0.0, 0.0, 0.076]
 "#;
 
-/// A soft organ (the default parameters: it flattens to a few millimetres under a second organ of
-/// its own weight) pressed against the table by another: the response between the two organs may
-/// not push the nodes between them into the table, which the obstacle pass put them on (without
-/// the table in the response's solve they ended up to 1.1 mm inside it at the end of every tick,
-/// to be pushed out by the next tick's obstacle pass, and the upper organ jittered). No node of
-/// either ends a tick below the table, and none is inside the other organ.
+/// A 5 kg organ dropped 1 cm onto a 0.06 kg one of a tenth of the default stiffnesses, which it
+/// crushes flat against the table: nodes of the light one beyond the contact skin of the table at
+/// the start of the response are pushed by the heavy one's impulses by millimetres in a tick.
+const HEAVY_ON_FLIMSY: &str = r#"
+    [[obstacle]]
+    name = "table"
+    plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+    [[body]]
+    name = "light"
+    mesh = { ellipsoid = { radii = [0.08, 0.06, 0.03], subdivisions = 2 } }
+    position = [0.0, 0.0, 0.0301]
+    surface_mass = 0.02
+    rigid_mass = 0.04
+    surface_stiffness = 20.0
+    link_stiffness = 10.0
+    [[body]]
+    name = "heavy"
+    mesh = { ellipsoid = { radii = [0.06, 0.05, 0.04], subdivisions = 2 } }
+    position = [0.0, 0.0, 0.11]
+    surface_mass = 1.0
+    rigid_mass = 4.0
+    surface_stiffness = 80.0
+    link_stiffness = 60.0
+"#;
+
+/// A soft organ pressed against the table by another: the response between the two organs may not
+/// push the nodes between them into the table, which the obstacle pass put them on. Two cases:
+/// - the default parameters (the lower organ flattens to a few millimetres under a second organ of
+///   its own weight): without the table in the response's solve its nodes ended up to 1.1 mm inside
+///   it at the end of every tick, to be pushed out by the next tick's obstacle pass, and the upper
+///   organ jittered.
+/// - [`HEAVY_ON_FLIMSY`]: with rows of the solve only for the nodes within the contact skin of the
+///   table, nodes farther up were pushed through it, up to 2.9 mm, at the end of 803 of the first
+///   1000 ticks; the rows now reach as far as twice the fastest listed node moves over the tick.
+///
+/// No node of either ends a tick below the table, and none is inside the other organ.
 #[test]
 fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
-    let mut world = World::from_scene(&common::scene(SOFT_PAIR));
-    let mut lowest = f64::INFINITY;
-    let mut pressed = 0;
-    for k in 1..=1500 {
-        world.step();
-        for body in &world.bodies {
-            for p in &body.surface.position_in_world {
-                lowest = lowest.min(p.z);
+    for (name, text, ticks) in [
+        ("default pair", SOFT_PAIR, 1500),
+        ("5 kg on 0.06 kg", HEAVY_ON_FLIMSY, 1000),
+    ] {
+        let mut world = World::from_scene(&common::scene(text));
+        let mut lowest = f64::INFINITY;
+        let (mut pressed, mut below) = (0, 0);
+        for k in 1..=ticks {
+            world.step();
+            let mut lowest_now = f64::INFINITY;
+            for body in &world.bodies {
+                for p in &body.surface.position_in_world {
+                    lowest_now = lowest_now.min(p.z);
+                }
+            }
+            lowest = lowest.min(lowest_now);
+            if lowest_now <= -1e-9 {
+                below += 1;
+            }
+            // The upper organ's nodes reach the table's layer through the flattened lower one.
+            let upper = &world.bodies[1].surface.position_in_world;
+            if upper.iter().any(|p| p.z < 0.001) {
+                pressed += 1;
+            }
+            if k % 50 == 0 {
+                assert_eq!(common::nodes_inside_others(&world), 0, "{name}: tick {k}");
             }
         }
-        // The upper organ's nodes reach the table's layer through the flattened lower one.
-        let upper = &world.bodies[1].surface.position_in_world;
-        if upper.iter().any(|p| p.z < 0.001) {
-            pressed += 1;
-        }
-        if k % 50 == 0 {
-            assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
-        }
+        println!(
+            "{name}: lowest node over {ticks} ticks: {lowest:.3e} m, ticks with a node below the \
+             table: {below}; ticks with the upper organ within 1 mm of the table: {pressed}; {:?}",
+            world.counters.bodies
+        );
+        assert!(
+            pressed > ticks / 3,
+            "{name}: the lower organ was not pressed flat: {pressed}"
+        );
+        assert!(
+            lowest > -1e-9,
+            "{name}: a node ended a tick {lowest} m into the table ({below} ticks)"
+        );
     }
-    println!(
-        "lowest node over 1.5 s: {:.3e} m; ticks with the upper organ within 1 mm of the table: {pressed}; {:?}",
-        lowest, world.counters.bodies
-    );
-    assert!(
-        pressed > 500,
-        "the lower organ was not pressed flat: {pressed}"
-    );
-    assert!(
-        lowest > -1e-9,
-        "a node ended a tick {lowest} m into the table"
-    );
 }
 
 /// Two organs of the default parameters stacked (the lower one is pressed flat under the upper, its

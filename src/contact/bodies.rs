@@ -239,8 +239,8 @@ struct SolverNode {
 /// Most obstacle planes one node of the response is held by (a node in a corner of two).
 const GROUND_PER_NODE: usize = 2;
 
-/// An obstacle's plane under a node of the response that ends the tick on it or within the skin
-/// of it: the response's impulses may not push the node below the plane (or deeper than it was).
+/// An obstacle's plane under a node of the response that ends the tick on it or near it (see
+/// [`ground_rows`]): the response's impulses may not push the node below the plane (or deeper than it was).
 /// The obstacle passes ran before the response and left such nodes on their obstacles; without
 /// these rows an organ pressed by another against the table has the nodes between pushed into the
 /// table by the response and out again by the next tick's obstacle pass, every tick (a heavy
@@ -2177,7 +2177,7 @@ pub fn respond_to_body_contacts(
     let held_kept = held_kept.min(kept);
     counters.contacts = scratch.contacts.len() as u32;
     // The obstacles the contacts' nodes rest on, which the impulses may not push them into.
-    counters.overflows += ground_rows(solver_nodes, obstacles);
+    counters.overflows += ground_rows(solver_nodes, obstacles, dt);
     // Warm start: a contact that was there last tick, between the same nodes of bodies whose
     // topology did not change, starts from last tick's impulses (its tangential one on this
     // tick's tangent plane, within the cone): a resting stack's solve then starts where the last
@@ -2290,18 +2290,31 @@ pub fn respond_to_body_contacts(
 }
 
 /// Lists a [`GroundRow`] for each listed node the response may move that ends the tick on an
-/// obstacle, behind it or within the skin of it (at most [`GROUND_PER_NODE`] a node, in the order
+/// obstacle, behind it or near it (within the skin and twice the fastest listed node's motion; at most [`GROUND_PER_NODE`] a node, in the order
 /// of the nodes then of the obstacles); returns how many did not fit.
-fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle]) -> u32 {
+fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle], dt: f64) -> u32 {
     let mut overflows = 0;
     let SolverNodes { nodes, ground, .. } = solver_nodes;
+    if obstacles.is_empty() {
+        return 0;
+    }
+    // A node beyond the skin can be pushed onto the obstacle by the impulses too: by about what
+    // the nodes it touches move over the tick (a heavy organ pressing a light one flat against the
+    // table pushed nodes up to 3 mm under it, from above the skin). Nodes within twice the largest
+    // motion of a listed node get a row; it stays idle unless the impulses reach the plane.
+    let fastest = nodes
+        .iter()
+        .map(|n| n.motion.norm_squared())
+        .fold(0.0, f64::max)
+        .sqrt();
+    let reach = CONTACT_SKIN + 2.0 * fastest * dt;
     for (slot, n) in nodes.iter().enumerate() {
         if n.inverse_mass == 0.0 {
             continue;
         }
         let mut rows = 0;
         for (k, obstacle) in obstacles.iter().enumerate() {
-            let Some(plane) = obstacle.shape.plane_within(&n.end, CONTACT_SKIN) else {
+            let Some(plane) = obstacle.shape.plane_within(&n.end, reach) else {
                 continue;
             };
             if rows == GROUND_PER_NODE || ground.len() == ground.capacity() {
