@@ -255,6 +255,7 @@ impl Guard {
     /// Checks the body after a step and restores it if needed. `energy` is its energy now (only
     /// computed by the caller when energy checks are on; `None` skips them).
     pub fn check(&mut self, body: &mut Body, energy: Option<f64>) -> Option<GuardCause> {
+        let acted_last_step = self.acted;
         self.acted = false;
         let cause = self.diagnose(body, energy);
         match cause {
@@ -263,7 +264,14 @@ impl Guard {
                 None
             }
             Some(cause) => {
+                // Kept start positions the step failed from again are no way out: the same state,
+                // stepped again, failed again, every tick (two stacked organs crushed by a probe
+                // with no force limit: the guard acted on both at every tick for good, the tick
+                // at 100 ms). A second event in a row snaps onto the rest shape.
+                let keep = self.keep_start;
+                self.keep_start &= !acted_last_step;
                 self.restore(body, cause);
+                self.keep_start = keep;
                 self.events += 1;
                 self.last_cause = Some(cause);
                 self.acted = true;
@@ -364,6 +372,54 @@ mod tests {
             &BodyParams::default(),
             &Placement::default(),
         )
+    }
+
+    /// With `keep_start`, a first event restores the nodes to where the step started; an event at
+    /// the next step too snaps them onto the rest shape (the kept state failed again: stepping it
+    /// again would fail again, every tick); after a good step the next event keeps them again.
+    #[test]
+    fn a_second_event_in_a_row_snaps_onto_the_rest_shape() {
+        let gravity = Vec3::new(0.0, 0.0, -9.81);
+        let rest = body();
+        let mut guard = Guard::new(&rest, &gravity);
+        guard.keep_start = true;
+        // A deformed start (what the commit leaves in `next_position_in_world`): squashed by 2 mm.
+        let mut state = rest.clone();
+        for x in state.surface.next_position_in_world.iter_mut() {
+            x.z *= 0.96;
+        }
+        let start = state.surface.next_position_in_world.clone();
+        let on_rest_shape = |b: &Body| {
+            b.surface
+                .position_in_world
+                .iter()
+                .zip(&b.surface.homologue_in_world)
+                .all(|(x, h)| x == h)
+        };
+        let glitch = |b: &mut Body| b.surface.velocity_in_world[3].x = 500.0;
+        for (step, glitched, kept) in [
+            (1, true, true),
+            (2, true, false),
+            (3, false, false),
+            (4, true, true),
+        ] {
+            state.surface.next_position_in_world.clone_from(&start);
+            if glitched {
+                glitch(&mut state);
+                assert_eq!(guard.check(&mut state, None), Some(GuardCause::Speed));
+                assert_eq!(
+                    state.surface.position_in_world == start,
+                    kept,
+                    "step {step}"
+                );
+                assert_eq!(on_rest_shape(&state), !kept, "step {step}");
+            } else {
+                state.surface.position_in_world.clone_from(&start);
+                state.surface.velocity_in_world.fill(Vec3::zeros());
+                assert_eq!(guard.check(&mut state, None), None, "step {step}");
+            }
+        }
+        assert!(guard.keep_start);
     }
 
     #[test]
