@@ -491,7 +491,7 @@ const HEAVY_ON_FLIMSY: &str = r#"
 ///   The net answered 80 collisions a tick there, most of them the same edges frozen at their
 ///   start tick after tick, until the response took edges that start within the skin of each
 ///   other and cross (see `edge_edge_crossed_from_near` in `src/contact/bodies.rs`): 82 a tick
-///   over the second half before, 33 now.
+///   over the second half before, 30 now.
 ///
 /// No node of either ends a tick below the table, and none is inside the other organ.
 #[test]

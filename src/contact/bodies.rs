@@ -125,9 +125,11 @@ struct Contact {
     wa: [f64; 2],
     b: [NodeRef; 3],
     wb: [f64; 3],
-    /// Unit normal from side b towards side a at the end of the tick.
+    /// Unit normal from side b towards side a at the end of the tick (at its start for an edge
+    /// pair that crossed from within the skin, [`edge_edge_crossed_from_near`]).
     normal: Vec3,
-    /// Distance between the two contact points at the end of the tick as integrated (m).
+    /// Distance between the two contact points at the end of the tick as integrated (m) (at its
+    /// start for such an edge pair).
     distance: f64,
     /// Signed distance along `normal` at the start of the tick (m).
     gap: f64,
@@ -373,6 +375,9 @@ pub struct BodyContactScratch {
     /// the node this tick (0: none), with room for the body's most nodes (see
     /// [`worth_testing`]).
     answered: Vec<Room<u32>>,
+    /// Per body (and room for pieces), whether a mark of `answered` is set: the net's run clears
+    /// them first, so that the marks the response reads are those of the net's last run only.
+    marked: Vec<bool>,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -419,7 +424,7 @@ impl BodyContactScratch {
         }));
         let count = bvhs.len();
         // Room for each body's most nodes (at most 3 per triangle, as the hierarchy's own).
-        let answered = bodies
+        let answered: Vec<Room<u32>> = bodies
             .iter()
             .map(|b| Room::with_capacity(b.mesh_capacity().0.max(b.node_count())))
             .chain((0..spare).map(|_| Room::with_capacity(3 * spare_triangles + 3)))
@@ -449,6 +454,7 @@ impl BodyContactScratch {
             now: TriangleBoxes::new(bodies, count, spare_triangles),
             cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
             max_motion: Room::with_capacity(count),
+            marked: vec![false; answered.len()],
             answered,
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
@@ -685,12 +691,18 @@ fn worth_testing(
 
 /// Records that `round` answered a collision of `nodes` (when `hit`; whether or not it could move
 /// them: a tool holds some); returns 1 when it did.
-fn mark_answered(answered: &mut [Room<u32>], nodes: &[NodeRef; 4], round: usize, hit: bool) -> u32 {
+fn mark_answered(
+    (answered, marked): (&mut [Room<u32>], &mut [bool]),
+    nodes: &[NodeRef; 4],
+    round: usize,
+    hit: bool,
+) -> u32 {
     if !hit {
         return 0;
     }
     for r in nodes {
         if let Some(mark) = answered[r.body].get_mut(r.node) {
+            marked[r.body] = true;
             *mark = round as u32 + 1;
         }
     }
@@ -707,6 +719,12 @@ pub fn resolve_body_collisions(
     dt: f64,
 ) -> BodyContactCounters {
     let mut counters = BodyContactCounters::default();
+    // Last run's marks, read by this tick's response, are cleared whatever this run does.
+    for (marks, marked) in scratch.answered.iter_mut().zip(scratch.marked.iter_mut()) {
+        if std::mem::take(marked) {
+            marks.iter_mut().for_each(|mark| *mark = 0);
+        }
+    }
     let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
     if prepared == Prepared::NoneNear {
         return counters;
@@ -882,7 +900,12 @@ pub fn resolve_body_collisions(
                                 overflow_freeze,
                                 dt,
                             );
-                            answered += mark_answered(&mut scratch.answered, &nodes, round, hit);
+                            answered += mark_answered(
+                                (&mut scratch.answered, &mut scratch.marked),
+                                &nodes,
+                                round,
+                                hit,
+                            );
                         }
                     }
                     for ea in 0..3 {
@@ -905,7 +928,12 @@ pub fn resolve_body_collisions(
                                 overflow_freeze,
                                 dt,
                             );
-                            answered += mark_answered(&mut scratch.answered, &nodes, round, hit);
+                            answered += mark_answered(
+                                (&mut scratch.answered, &mut scratch.marked),
+                                &nodes,
+                                round,
+                                hit,
+                            );
                         }
                     }
                 }
@@ -1349,12 +1377,17 @@ fn edge_edge_crossed_from_near(
     }
     // Ending within the skin of each other, the pair is [`edge_edge_contact`]'s (taking these too
     // left single ticks of 1.2e-5 J in a flattened organ at rest under another).
+    // Nearest inside both at the end as at the start: the lines' orientation also turns where
+    // the edges pass beside each other, or round an end.
+    let inner = EDGE_INNER..=1.0 - EDGE_INNER;
     let (s, t) = crate::collision::tool::segment_segment_closest(&e0, &e1, &f0, &f1);
-    if ((e0 + (e1 - e0) * s) - (f0 + (f1 - f0) * t)).norm() <= CONTACT_SKIN {
+    if ((e0 + (e1 - e0) * s) - (f0 + (f1 - f0) * t)).norm() <= CONTACT_SKIN
+        || !inner.contains(&s)
+        || !inner.contains(&t)
+    {
         return None;
     }
     let (s, t) = crate::collision::tool::segment_segment_closest(&a0, &a1, &b0, &b1);
-    let inner = EDGE_INNER..=1.0 - EDGE_INNER;
     if !inner.contains(&s) || !inner.contains(&t) {
         return None;
     }
@@ -2150,15 +2183,18 @@ pub fn respond_to_body_contacts(
                 }
                 // Sides the edge started within the skin of and crossed over the tick
                 // ([`edge_edge_crossed_from_near`]), looked for where the collision net answered
-                // a collision of the edge's nodes in its last run (its marks stay until its next):
-                // the response takes over what the net would stop again.
+                // a collision of the edge's nodes in its last run, the tick before (it clears its
+                // marks as it starts; the body's topology the same since, so that they name the
+                // same nodes): the response takes over what the net would stop again. (Such a
+                // contact ends beyond the skin, `best` within it: never the same side.)
                 let mut crossed: Option<Contact> = None;
                 let net_answered = |r: NodeRef| {
-                    scratch
-                        .answered
-                        .get(r.body)
-                        .and_then(|marks| marks.get(r.node))
-                        .is_some_and(|&mark| mark > 0)
+                    same_topology(&scratch.warm_versions, bodies, r.body)
+                        && scratch
+                            .answered
+                            .get(r.body)
+                            .and_then(|marks| marks.get(r.node))
+                            .is_some_and(|&mark| mark > 0)
                 };
                 if net_answered(a[0]) || net_answered(a[1]) {
                     for candidate in sides {
@@ -2185,7 +2221,8 @@ pub fn respond_to_body_contacts(
     // Held contacts: an edge whose contact pressed a side last tick, and whose nearest side is
     // another now, keeps a contact with that side too while it is within the skin, its normal
     // impulse capped at a share of last tick's (and so on, tick after tick, while that side is not
-    // the nearest: the cap halves each tick). Each edge keeps one contact, with its nearest side;
+    // the nearest: the cap halves each tick). Each edge keeps one contact, with its nearest side
+    // (and one with a side it crossed from within the skin, `edge_edge_crossed_from_near`);
     // edges are tested from one body only, so a node of the other body whose sides an edge of this
     // one held up lost its support at once when the edge's nearest side changed, fell 0.1 mm under
     // its own springs within the tick and was caught at the next (single ticks of 1.7e-5 J in a
@@ -2225,7 +2262,8 @@ pub fn respond_to_body_contacts(
         }
     }
     // One contact per vertex (or edge) and other body, the nearest (kept above; a vertex pressed into
-    // a fold takes up to two more, see `crossed_too`), in a fixed order:
+    // a fold takes up to two more, see `crossed_too`, an edge one more with a side it crossed from
+    // within the skin, `edge_edge_crossed_from_near`), in a fixed order:
     // the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
     // (edge) of a body is named in one run of its pair's list (through the one triangle that owns
     // it), and the lists keep the order of a traversal of the hierarchies whose descent does not
@@ -2387,7 +2425,8 @@ pub fn respond_to_body_contacts(
 }
 
 /// Lists a [`GroundRow`] for each listed node the response may move that ends the tick on an
-/// obstacle, behind it or near it (within the skin and twice the fastest listed node's motion; at most [`GROUND_PER_NODE`] a node, in the order
+/// obstacle, behind it or near it (a plane within the skin plus twice the largest displacement of a
+/// listed node the response may move, a box within the skin; at most [`GROUND_PER_NODE`] a node, in the order
 /// of the nodes then of the obstacles); returns how many did not fit.
 fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle], dt: f64) -> u32 {
     let mut overflows = 0;
@@ -2399,18 +2438,25 @@ fn ground_rows(solver_nodes: &mut SolverNodes, obstacles: &[Obstacle], dt: f64) 
     // the nodes it touches move over the tick (a heavy organ pressing a light one flat against the
     // table pushed nodes up to 3 mm under it, from above the skin). Nodes within twice the largest
     // motion of a listed node get a row; it stays idle unless the impulses reach the plane.
+    // (A box's nearest face is taken within the skin only: farther, beside its rim, it is no floor.)
     let fastest = nodes
         .iter()
+        .filter(|n| n.inverse_mass != 0.0)
         .map(|n| n.motion.norm_squared())
         .fold(0.0, f64::max)
         .sqrt();
-    let reach = CONTACT_SKIN + 2.0 * fastest * dt;
+    let plane_reach = CONTACT_SKIN + 2.0 * fastest * dt;
     for (slot, n) in nodes.iter().enumerate() {
         if n.inverse_mass == 0.0 {
             continue;
         }
         let mut rows = 0;
         for (k, obstacle) in obstacles.iter().enumerate() {
+            let reach = if obstacle.shape.as_plane().is_some() {
+                plane_reach
+            } else {
+                CONTACT_SKIN
+            };
             let Some(plane) = obstacle.shape.plane_within(&n.end, reach) else {
                 continue;
             };

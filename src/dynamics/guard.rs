@@ -54,7 +54,8 @@ pub struct Guard {
     /// Restore the nodes to where they started the step instead of onto the rigid component's
     /// shape, unless the energy was what the guard found wrong (set by the world for a step that did not change the body's topology when other bodies
     /// may touch it: the rest shape of an organ pressed flat by another lies inside that one, and
-    /// snapping onto it left the two crossed for good).
+    /// snapping onto it left the two crossed for good). Not for a second event in a row: the state
+    /// kept failed again and would at every step (the rest shape then, crossed or not).
     pub keep_start: bool,
     /// The budget was taken from the state the first step started from.
     started: bool,
