@@ -38,6 +38,10 @@ pub const ENERGY_SLACK: f64 = 0.5;
 /// Absolute energy slack (J).
 pub const ENERGY_SLACK_J: f64 = 0.05;
 
+/// Events in a row from which the guard snaps a body onto its rest shape even when it would keep
+/// the start positions ([`Guard::keep_start`]): 50 ms of a body that fails every step.
+pub const SNAP_AFTER: u32 = 50;
+
 /// Per-body guard state.
 #[derive(Clone, Debug)]
 pub struct Guard {
@@ -54,8 +58,8 @@ pub struct Guard {
     /// Restore the nodes to where they started the step instead of onto the rigid component's
     /// shape, unless the energy was what the guard found wrong (set by the world for a step that did not change the body's topology when other bodies
     /// may touch it: the rest shape of an organ pressed flat by another lies inside that one, and
-    /// snapping onto it left the two crossed for good). Not for a second event in a row: the state
-    /// kept failed again and would at every step (the rest shape then, crossed or not).
+    /// snapping onto it left the two crossed for good). Not from the [`SNAP_AFTER`]-th event in a
+    /// row: the state kept kept failing (the rest shape then, crossed or not).
     pub keep_start: bool,
     /// The budget was taken from the state the first step started from.
     started: bool,
@@ -63,6 +67,8 @@ pub struct Guard {
     budget: f64,
     gravity: Vec3,
     last_good_rigid: RigidComponent,
+    /// Events in a row (0 after a step it let pass).
+    in_a_row: u32,
     /// The pass over the nodes taken by [`Guard::measure`] since the last check, if any.
     measured: Option<Measure>,
 }
@@ -192,6 +198,7 @@ impl Guard {
             budget: body_energy(body, gravity),
             gravity: *gravity,
             last_good_rigid: body.rigid.clone(),
+            in_a_row: 0,
             measured: None,
         }
     }
@@ -256,22 +263,26 @@ impl Guard {
     /// Checks the body after a step and restores it if needed. `energy` is its energy now (only
     /// computed by the caller when energy checks are on; `None` skips them).
     pub fn check(&mut self, body: &mut Body, energy: Option<f64>) -> Option<GuardCause> {
-        let acted_last_step = self.acted;
         self.acted = false;
         let cause = self.diagnose(body, energy);
         match cause {
             None => {
                 self.last_good_rigid = body.rigid.clone();
+                self.in_a_row = 0;
                 None
             }
             Some(cause) => {
-                // Kept start positions the step failed from again are no way out: the same state,
-                // stepped again, failed again, every tick (two stacked organs crushed by a probe
-                // with no force limit: the guard acted on both at every tick for good, the tick
-                // at 100 ms). A second event in a row snaps onto the rest shape.
+                // Kept start positions the step failed from again are a way out only if something
+                // changes: the same state, stepped again, failed again, every tick (two stacked
+                // organs crushed by a probe with no force limit: the guard acted on both at every
+                // tick for good, the tick at 100 ms). From the second event in a row the body is
+                // also stopped where it started; from the [`SNAP_AFTER`]-th it is snapped onto its
+                // rest shape (as without `keep_start`, whose events in a row are not stopped). (Snapping at the second: 140–164 nodes of the two organs crossed at
+                // two press depths, 11–20 keeping the start positions.)
+                self.in_a_row = self.in_a_row.saturating_add(1);
                 let keep = self.keep_start;
-                self.keep_start &= !acted_last_step;
-                self.restore(body, cause);
+                self.keep_start &= self.in_a_row < SNAP_AFTER;
+                self.restore(body, cause, self.keep_start && self.in_a_row >= 2);
                 self.keep_start = keep;
                 self.events += 1;
                 self.last_cause = Some(cause);
@@ -318,7 +329,7 @@ impl Guard {
 
     /// The last good rigid component, the nodes on it moving with it; stopped if that motion holds
     /// more energy than the budget allows.
-    fn restore(&mut self, body: &mut Body, cause: GuardCause) {
+    fn restore(&mut self, body: &mut Body, cause: GuardCause, stop: bool) {
         // Forces are a step's scratch: keep the current ones, restore the state.
         let (force, torque) = (body.rigid.force_in_world, body.rigid.torque_in_world);
         body.rigid.clone_from(&self.last_good_rigid);
@@ -330,7 +341,7 @@ impl Guard {
         self.snap_nodes(body, keep_start);
         let allowed = self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J;
         let energy = body_energy(body, &self.gravity);
-        if !energy.is_finite() || energy > allowed {
+        if stop || !energy.is_finite() || energy > allowed {
             body.rigid.velocity_in_world = Vec3::zeros();
             body.rigid.angular_momentum_in_world = Vec3::zeros();
             self.snap_nodes(body, keep_start);
@@ -375,20 +386,24 @@ mod tests {
         )
     }
 
-    /// With `keep_start`, a first event restores the nodes to where the step started; an event at
-    /// the next step too snaps them onto the rest shape (the kept state failed again: stepping it
-    /// again would fail again, every tick); after a good step the next event keeps them again.
+    /// With `keep_start`, an event restores the nodes to where the step started, from the second
+    /// in a row with the body stopped there (no velocity), and the [`SNAP_AFTER`]-th in a row snaps
+    /// them onto the rest shape (the kept state kept failing; moving with the last good rigid
+    /// component, as any snap); after a good step the next event
+    /// keeps them again, with their velocities.
     #[test]
-    fn a_second_event_in_a_row_snaps_onto_the_rest_shape() {
+    fn events_in_a_row_stop_the_body_then_snap_it_onto_the_rest_shape() {
         let gravity = Vec3::new(0.0, 0.0, -9.81);
         let rest = body();
         let mut guard = Guard::new(&rest, &gravity);
         guard.keep_start = true;
-        // A deformed start (what the commit leaves in `next_position_in_world`): squashed by 2 mm.
+        // A deformed start (what the commit leaves in `next_position_in_world`), moving.
         let mut state = rest.clone();
         for x in state.surface.next_position_in_world.iter_mut() {
             x.z *= 0.96;
         }
+        state.rigid.velocity_in_world = Vec3::new(0.01, 0.0, 0.0);
+        assert_eq!(guard.check(&mut state, None), None);
         let start = state.surface.next_position_in_world.clone();
         let on_rest_shape = |b: &Body| {
             b.surface
@@ -397,13 +412,19 @@ mod tests {
                 .zip(&b.surface.homologue_in_world)
                 .all(|(x, h)| x == h)
         };
+        let still = |b: &Body| {
+            b.surface
+                .velocity_in_world
+                .iter()
+                .all(|v| *v == Vec3::zeros())
+        };
         let glitch = |b: &mut Body| b.surface.velocity_in_world[3].x = 500.0;
-        for (step, glitched, kept) in [
-            (1, true, true),
-            (2, true, false),
-            (3, false, false),
-            (4, true, true),
-        ] {
+        let mut steps = vec![(true, true, false)];
+        steps.extend((2..SNAP_AFTER).map(|_| (true, true, true)));
+        steps.push((true, false, false));
+        steps.push((false, false, false));
+        steps.push((true, true, false));
+        for (step, &(glitched, kept, stopped)) in steps.iter().enumerate() {
             state.surface.next_position_in_world.clone_from(&start);
             if glitched {
                 glitch(&mut state);
@@ -414,9 +435,14 @@ mod tests {
                     "step {step}"
                 );
                 assert_eq!(on_rest_shape(&state), !kept, "step {step}");
+                assert_eq!(still(&state), stopped, "step {step}");
             } else {
                 state.surface.position_in_world.clone_from(&start);
-                state.surface.velocity_in_world.fill(Vec3::zeros());
+                state.rigid.velocity_in_world = Vec3::new(0.01, 0.0, 0.0);
+                state
+                    .surface
+                    .velocity_in_world
+                    .fill(Vec3::new(0.01, 0.0, 0.0));
                 assert_eq!(guard.check(&mut state, None), None, "step {step}");
             }
         }
