@@ -1332,7 +1332,19 @@ fn edge_edge_contact_at(
     if gap < -CONTACT_SKIN {
         return None;
     }
-    Some(Contact {
+    Some(edge_pair_contact(a, b, (s, t), normal, distance, gap))
+}
+
+/// The contact of edge `a` at parameter `s` with edge `b` at `t`, before the solve.
+fn edge_pair_contact(
+    a: [NodeRef; 2],
+    b: [NodeRef; 2],
+    (s, t): (f64, f64),
+    normal: Vec3,
+    distance: f64,
+    gap: f64,
+) -> Contact {
+    Contact {
         a,
         wa: [1.0 - s, s],
         b: [b[0], b[1], b[1]],
@@ -1345,7 +1357,7 @@ fn edge_edge_contact_at(
         normal_impulse: 0.0,
         tangent_impulse: Vec3::zeros(),
         cap: f64::INFINITY,
-    })
+    }
 }
 
 /// The contact of edge `a` with edge `b` (of another body) that started the tick within the skin
@@ -1406,20 +1418,8 @@ fn edge_edge_crossed_from_near(
         // b on the side of `across`: a is on the other.
         across * (-side_start.signum() / length)
     };
-    Some(Contact {
-        a,
-        wa: [1.0 - s, s],
-        b: [b[0], b[1], b[1]],
-        wb: [1.0 - t, t, 0.0],
-        normal,
-        distance,
-        gap: before.dot(&normal),
-        friction: 0.0,
-        compliance: 0.0,
-        normal_impulse: 0.0,
-        tangent_impulse: Vec3::zeros(),
-        cap: f64::INFINITY,
-    })
+    let gap = before.dot(&normal);
+    Some(edge_pair_contact(a, b, (s, t), normal, distance, gap))
 }
 
 /// A body's nodes four at a time: their points as three vectors of four coordinates each, lane `l`
