@@ -1388,9 +1388,9 @@ fn edge_edge_crossed_from_near(
         return None;
     }
     // Ending within the skin of each other, the pair is [`edge_edge_contact`]'s (taking these too
-    // left single ticks of 1.2e-5 J in a flattened organ at rest under another).
-    // Nearest inside both at the end as at the start: the lines' orientation also turns where
-    // the edges pass beside each other, or round an end.
+    // left single ticks of 1.2e-5 J in a flattened organ at rest under another). Nearest inside
+    // both at the end as at the start: the lines' orientation also turns where the edges pass
+    // beside each other, or round an end.
     let inner = EDGE_INNER..=1.0 - EDGE_INNER;
     let (s, t) = crate::collision::tool::segment_segment_closest(&e0, &e1, &f0, &f1);
     if ((e0 + (e1 - e0) * s) - (f0 + (f1 - f0) * t)).norm() <= CONTACT_SKIN
@@ -2207,13 +2207,8 @@ pub fn respond_to_body_contacts(
                         }
                     }
                 }
-                match (best, crossed) {
-                    (Some(c), Some(x)) if c.b != x.b => {
-                        push(&mut scratch.contacts, &mut counters, c);
-                        push(&mut scratch.contacts, &mut counters, x);
-                    }
-                    (Some(c), _) | (None, Some(c)) => push(&mut scratch.contacts, &mut counters, c),
-                    (None, None) => {}
+                for c in [best, crossed].into_iter().flatten() {
+                    push(&mut scratch.contacts, &mut counters, c);
                 }
             }
         }

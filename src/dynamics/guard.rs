@@ -56,10 +56,11 @@ pub struct Guard {
     /// the force stage measured at the start of the step, one step behind.
     pub energy_at_end: bool,
     /// Restore the nodes to where they started the step instead of onto the rigid component's
-    /// shape, unless the energy was what the guard found wrong (set by the world for a step that did not change the body's topology when other bodies
-    /// may touch it: the rest shape of an organ pressed flat by another lies inside that one, and
-    /// snapping onto it left the two crossed for good). Not from the [`SNAP_AFTER`]-th event in a
-    /// row: the state kept kept failing (the rest shape then, crossed or not).
+    /// shape, unless the energy was what the guard found wrong (set by the world for a step that
+    /// did not change the body's topology when other bodies may touch it: the rest shape of an
+    /// organ pressed flat by another lies inside that one, and snapping onto it left the two
+    /// crossed for good). Not from the [`SNAP_AFTER`]-th event in a row: the start state went on
+    /// failing (the rest shape then, crossed or not).
     pub keep_start: bool,
     /// The budget was taken from the state the first step started from.
     started: bool,
@@ -280,10 +281,11 @@ impl Guard {
                 // rest shape (as without `keep_start`, whose events in a row are not stopped). (Snapping at the second: 140–164 nodes of the two organs crossed at
                 // two press depths, 11–20 keeping the start positions.)
                 self.in_a_row = self.in_a_row.saturating_add(1);
-                let keep = self.keep_start;
-                self.keep_start &= self.in_a_row < SNAP_AFTER;
-                self.restore(body, cause, self.keep_start && self.in_a_row >= 2);
-                self.keep_start = keep;
+                // Where the step started, unless that state is the one over the energy budget
+                // (the energy checked is the one the force stage measured at the start of the step).
+                let keep_start =
+                    self.keep_start && self.in_a_row < SNAP_AFTER && cause != GuardCause::Energy;
+                self.restore(body, keep_start, keep_start && self.in_a_row >= 2);
                 self.events += 1;
                 self.last_cause = Some(cause);
                 self.acted = true;
@@ -327,17 +329,15 @@ impl Guard {
         None
     }
 
-    /// The last good rigid component, the nodes on it moving with it; stopped if that motion holds
-    /// more energy than the budget allows.
-    fn restore(&mut self, body: &mut Body, cause: GuardCause, stop: bool) {
+    /// The last good rigid component, the nodes on it (or, with `keep_start`, where the step
+    /// started) moving with it; stopped when `stop`, or if that motion holds more energy than the
+    /// budget allows.
+    fn restore(&mut self, body: &mut Body, keep_start: bool, stop: bool) {
         // Forces are a step's scratch: keep the current ones, restore the state.
         let (force, torque) = (body.rigid.force_in_world, body.rigid.torque_in_world);
         body.rigid.clone_from(&self.last_good_rigid);
         body.rigid.force_in_world = force;
         body.rigid.torque_in_world = torque;
-        // Where the step started, unless that state is the one over the energy budget (the energy
-        // checked is the one the force stage measured at the start of the step).
-        let keep_start = self.keep_start && cause != GuardCause::Energy;
         self.snap_nodes(body, keep_start);
         let allowed = self.budget + ENERGY_SLACK * self.budget.abs() + ENERGY_SLACK_J;
         let energy = body_energy(body, &self.gravity);
