@@ -2251,6 +2251,18 @@ pub fn respond_to_body_contacts(
             if nearest.is_none_or(|c| c.b == w.b) {
                 continue;
             }
+            // An edge has up to two contacts this tick, side by side (its nearest side, then one it
+            // crossed from within the skin): the side held must be neither.
+            let this_tick = &scratch.contacts[..held_from];
+            let matched = cursor - 1;
+            let same_edge = |k: usize| {
+                this_tick
+                    .get(k)
+                    .is_some_and(|c| c.a == w.a && c.b[0].body == w.b[0].body && c.b == w.b)
+            };
+            if same_edge(matched + 1) || matched.checked_sub(1).is_some_and(same_edge) {
+                continue;
+            }
             let edge = EdgeAtEnd::of(bodies, w.a);
             let b = [w.b[0], w.b[1]];
             let ends = (end_of(bodies, b[0]), end_of(bodies, b[1]));
