@@ -1143,8 +1143,8 @@ fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
     assert_eq!(worst, 0, "the restore left the organs crossed");
 }
 
-/// Two stacked 642-node organs (1.3 kg, 6 cm thick, under 0.4 kg, 4 cm thick) and an 8 mm probe
-/// with no force limit pushed down into the stack until its tip is 1.8 cm below the lower organ's
+/// Two stacked 642-node organs (1.3 kg, 6 cm thick, under 0.4 kg, 4 cm thick) and a probe of 8 mm
+/// radius with no force limit pushed down into the stack until its tip is 1.8 cm below the lower organ's
 /// top: the upper organ is squashed through itself (the model has no contact
 /// of a body with itself) and the probe holds nodes of both organs at once. A contact between
 /// nodes the probe holds, on both sides, and a free node of small weight asked that node to move

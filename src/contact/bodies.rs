@@ -91,9 +91,10 @@ const FREEZE_ROUNDS: usize = 16;
 /// Most a contact's impulse may move one of its nodes, in times the change of the contact's
 /// relative motion it makes. A free node of weight w among nodes a tool holds (which do not move)
 /// would move 1/w times it: two organs squeezed by a probe into each other's faces, where a node of
-/// weight 1e-6 took 1e6 times the correction and the solve diverged to 1e15 m/s within a tick. Between
-/// free nodes of masses in a ratio r the most is √r / 2 (2.5 at r = 25), so the bound leaves them
-/// exact up to a ratio of 256.
+/// weight 1e-6 took 1e6 times the correction and the solve diverged to 1e15 m/s within a tick.
+/// Between free nodes whose masses are in a ratio r the most is about 1 at r = 4, 2.4 at r = 25
+/// and 6.9 at r = 256 (an edge pair's light node; 8 is reached near r = 350): the bound leaves
+/// such contacts as they were up to a ratio of 256.
 const MAX_AMPLIFICATION: f64 = 8.0;
 /// Fraction of the time of impact a colliding node is allowed to travel.
 const STOP_SHORT: f64 = 0.9;
@@ -2255,12 +2256,8 @@ pub fn respond_to_body_contacts(
             // crossed from within the skin): the side held must be neither.
             let this_tick = &scratch.contacts[..held_from];
             let matched = cursor - 1;
-            let same_edge = |k: usize| {
-                this_tick
-                    .get(k)
-                    .is_some_and(|c| c.a == w.a && c.b[0].body == w.b[0].body && c.b == w.b)
-            };
-            if same_edge(matched + 1) || matched.checked_sub(1).is_some_and(same_edge) {
+            let same_side = |k: usize| this_tick.get(k).is_some_and(|c| c.a == w.a && c.b == w.b);
+            if same_side(matched + 1) || matched.checked_sub(1).is_some_and(same_side) {
                 continue;
             }
             let edge = EdgeAtEnd::of(bodies, w.a);
@@ -2305,8 +2302,10 @@ pub fn respond_to_body_contacts(
             .sum::<f64>();
         // A contact whose free nodes have small weights (the heavy ones held by a tool) would move
         // them by many times the relative motion it corrects: its compliance is raised so that no
-        // node moves by more than [`MAX_AMPLIFICATION`] times it (a constraint force mixing on
-        // such contacts only; see the constant).
+        // node moves by more than [`MAX_AMPLIFICATION`] times it (see the constant). The solve's
+        // fixed point is the same; such a contact is relaxed, each update correcting a part of
+        // its relative motion (left partly open after the sweeps, for the net), and its parting
+        // of the positions is weaker alike.
         let floor = (0..nodes.count)
             .map(|i| nodes.weights[i].abs() * nodes.inverse_masses[i])
             .fold(0.0, f64::max)
