@@ -1155,9 +1155,7 @@ fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
 /// session".)
 #[test]
 fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
-    let text = format!(
-        "{}\n{}",
-        r#"
+    let text = r#"
 [[body]]
 name = "lower"
 mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 3 } }
@@ -1179,8 +1177,7 @@ link_stiffness = 30.0
 [[obstacle]]
 name = "table"
 plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-"#,
-        r#"
+
 [[tool]]
 name = "probe"
 shape = { sphere = { radius = 0.008 } }
@@ -1191,9 +1188,8 @@ script = [
   { t = 2.0, position = [0.0, 0.0, 0.05] },
   { t = 2.5, position = [0.03, 0.0, 0.05] },
 ]
-"#
-    );
-    let mut world = World::from_scene(&common::scene(&text));
+"#;
+    let mut world = World::from_scene(&common::scene(text));
     let (mut fastest, mut pressed) = (0.0f64, 0.0f64);
     for _ in 0..2100 {
         world.step();

@@ -2249,15 +2249,16 @@ pub fn respond_to_body_contacts(
             let nearest = next_match(&scratch.contacts[..held_from], &mut cursor, |c| {
                 c.a == w.a && c.b[0].body == w.b[0].body
             });
-            if nearest.is_none_or(|c| c.b == w.b) {
+            if nearest.is_none() {
                 continue;
             }
             // An edge has up to two contacts this tick, side by side (its nearest side, then one it
-            // crossed from within the skin): the side held must be neither.
+            // crossed from within the skin), the one matched among them: the side held must be
+            // neither.
             let this_tick = &scratch.contacts[..held_from];
             let matched = cursor - 1;
             let same_side = |k: usize| this_tick.get(k).is_some_and(|c| c.a == w.a && c.b == w.b);
-            if same_side(matched + 1) || matched.checked_sub(1).is_some_and(same_side) {
+            if (matched.saturating_sub(1)..=matched + 1).any(same_side) {
                 continue;
             }
             let edge = EdgeAtEnd::of(bodies, w.a);
@@ -2297,20 +2298,19 @@ pub fn respond_to_body_contacts(
         }
         c.friction = pair_friction.1;
         let mut nodes = ContactNodes::of(bodies, &c, dt);
-        c.compliance = (0..nodes.count)
-            .map(|i| nodes.weights[i] * nodes.weights[i] * nodes.inverse_masses[i])
-            .sum::<f64>();
         // A contact whose free nodes have small weights (the heavy ones held by a tool) would move
         // them by many times the relative motion it corrects: its compliance is raised so that no
         // node moves by more than [`MAX_AMPLIFICATION`] times it (see the constant). The solve's
         // fixed point is the same; such a contact is relaxed, each update correcting a part of
         // its relative motion (left partly open after the sweeps, for the net), and its parting
         // of the positions is weaker alike.
-        let floor = (0..nodes.count)
-            .map(|i| nodes.weights[i].abs() * nodes.inverse_masses[i])
-            .fold(0.0, f64::max)
-            / MAX_AMPLIFICATION;
-        c.compliance = c.compliance.max(floor);
+        let (mut compliance, mut most_moved) = (0.0, 0.0f64);
+        for i in 0..nodes.count {
+            let (w, inverse_mass) = (nodes.weights[i], nodes.inverse_masses[i]);
+            compliance += w * w * inverse_mass;
+            most_moved = most_moved.max(w.abs() * inverse_mass);
+        }
+        c.compliance = compliance.max(most_moved / MAX_AMPLIFICATION);
         nodes.effective_mass = 1.0 / c.compliance;
         let mut listed = true;
         for i in 0..nodes.count {
