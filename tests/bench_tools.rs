@@ -274,3 +274,41 @@ fn bench_cut_quick_writes_consistent_figures() {
     assert_eq!(finite(&r["transection"]["bodies_after"]), 2.0);
     assert!(finite(&r["transection"]["stage"]["mean_us"]) > 0.0);
 }
+
+#[test]
+fn bench_bodies_quick_writes_consistent_figures() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = out_dir("bench_bodies");
+    run(
+        env!("CARGO_BIN_EXE_palpa-bench"),
+        &["bodies", "--quick", "--out", dir.to_str().unwrap()],
+    );
+    let r = json(&dir.join("bodies.json"));
+    let layouts = r["layouts"].as_array().expect("layouts");
+    // `--quick`: two 162-node organs apart, touching and stacked.
+    assert_eq!(layouts.len(), 3);
+    for (row, layout) in layouts.iter().zip(["apart", "touching", "stacked"]) {
+        assert_eq!(row["layout"], layout);
+        assert_eq!(finite(&row["nodes_per_body"]), 162.0);
+        let (tick, stage) = (finite(&row["tick_us"]), finite(&row["body_contact_us"]));
+        assert!(tick > 0.0 && stage >= 0.0 && stage < tick, "{row}");
+    }
+    // Organs apart touch nothing; stacked, each rests on the other.
+    assert_eq!(finite(&layouts[0]["contacts_per_tick"]), 0.0);
+    assert!(finite(&layouts[2]["contacts_per_tick"]) > 10.0);
+    assert_eq!(finite(&r["laparoscopy"]["samples"]), 5500.0);
+    // The ball's landing: 200 ticks, held by the response's contacts (the net answered 7 765
+    // collisions there before the response took over the pairs it answers).
+    assert_eq!(finite(&r["landing"]["samples"]), 200.0);
+    let net = finite(&r["landing_net_collisions_per_run"]);
+    assert!(
+        net < 100.0,
+        "the net answered {net} collisions over the landing"
+    );
+    assert!(
+        std::fs::read_to_string(dir.join("bodies.md"))
+            .unwrap()
+            .contains("two_organs landing")
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

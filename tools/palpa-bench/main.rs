@@ -14,8 +14,8 @@
 //!   and the cost of a transection (the tube of `scenes/transection.toml` cut through).
 //! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching,
 //!   stacked in twos and (4 organs) in a tower that topples into a heap (2 and 4 organs of 162 and
-//!   642 nodes), and the laparoscopy scene's tick distribution
-//!   with the demo's two tools, per stage.
+//!   642 nodes), the laparoscopy scene's tick distribution with the demo's two tools, per stage,
+//!   and a ball's landing on an organ (`scenes/two_organs.toml`) with the collision net's answers.
 //! * `reference`: palpa's whole tick on a 10 242-node organ (no contact) against the plain reference
 //!   step ([`reference`]: array of structs, scalar `f64`) of the same system, in the same run, best
 //!   of three, after checking that both step the same system.
@@ -59,7 +59,8 @@ enum Cmd {
     /// against the same scenes without the grasp or the tearing.
     Grasp(GraspArgs),
     /// Body–body contact stage and whole tick against the number of bodies and nodes (apart,
-    /// touching, stacked), per stage; the laparoscopy scene's tick distribution with both tools.
+    /// touching, stacked), per stage; the laparoscopy scene's tick distribution with both tools; a
+    /// ball's landing on an organ.
     Bodies(GraspArgs),
     /// palpa's tick against the plain reference step of the same model (array of structs, scalar
     /// f64), same organ, same run.
@@ -920,6 +921,9 @@ fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
     text
 }
 
+/// The shipped two-organ scene (a soft ball dropped on an organ), for the landing's cost.
+const TWO_ORGANS: &str = include_str!("../../scenes/two_organs.toml");
+
 fn bodies(args: GraspArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
@@ -936,7 +940,7 @@ fn bodies(args: GraspArgs) -> Result<()> {
             }
         }
     }
-    let mut progress = Progress::new("bodies", cases.len() * reps + reps);
+    let mut progress = Progress::new("bodies", cases.len() * reps + 2 * reps);
     let command = format!(
         "palpa-bench bodies{} --out {}",
         if args.quick { " --quick" } else { "" },
@@ -1060,9 +1064,37 @@ fn bodies(args: GraspArgs) -> Result<()> {
         md += &format!("| {} | {us:.1} |\n", stage.name());
         stages.insert(stage.name().into(), json!(us));
     }
+    // A ball's landing (`scenes/two_organs.toml`, ticks 100–300: the impact), with what the
+    // collision net answered over it.
+    let landing = palpa::scene::parse_scene(TWO_ORGANS, "scenes/two_organs.toml", Path::new("."))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mut landing_ticks, mut net_collisions) = (Vec::new(), 0u64);
+    for _ in 0..reps {
+        let mut world = World::from_scene(&landing);
+        for tick in 0..300 {
+            let start = Instant::now();
+            world.step();
+            if tick >= 100 {
+                landing_ticks.push(start.elapsed().as_secs_f64() * 1e6);
+                net_collisions += u64::from(world.counters.bodies.collisions);
+            }
+        }
+        progress.step("landing");
+    }
+    let landing_spread = spread_of(landing_ticks);
+    let net_per_run = net_collisions / reps as u64;
+    md += &format!(
+        "
+`scenes/two_organs.toml` (a soft ball landing on an organ), ticks 100–300, {reps} run(s) \
+         pooled; the collision net answered {net_per_run} collisions a run:\n\n\
+         | scene | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n"
+    );
+    md += &spread_row("two_organs landing", &landing_spread);
     let result = json!({
         "command": command, "date": today(), "machine": machine(), "repetitions": reps,
         "layouts": rows, "laparoscopy": spread, "laparoscopy_stages_us": stages,
+        "landing": landing_spread, "landing_net_collisions_per_run": net_per_run,
     });
     std::fs::write(
         args.out.join("bodies.json"),
