@@ -403,8 +403,8 @@ pub struct BodyContactScratch {
     /// Where the remembered contacts begin in `warm`.
     warm_remembered: usize,
     /// The pairs of primitives the next tick's response takes a contact for whatever its nearest
-    /// ones are ([`Remembered`]): the collision net's answers of this tick and the remembered
-    /// contacts that pressed in this tick's response.
+    /// ones are ([`Remembered`]): the collision net's answers of this tick and this tick's
+    /// remembered contacts with the impulses they took.
     remembered: Room<Remembered>,
     /// Per entry of `remembered` (sorted, at the response), whether the response's own contacts
     /// hold the pair already.
@@ -416,7 +416,8 @@ pub struct BodyContactScratch {
 /// A vertex–face or edge–edge pair the collision net answered a collision of (or whose contact,
 /// taken for that, pressed last tick): the next tick's response takes a contact for it, whether
 /// or not the pair is its vertex's (edge's) nearest, so that the net does not stop the same pair
-/// again tick after tick. A soft ball landing on an organ: 93 % of the net's answers there were
+/// again tick after tick. Its normal impulse may be at most half of last tick's, so the contact
+/// fades within a few ticks unless the net answers the pair again. A soft ball landing on an organ: 93 % of the net's answers there were
 /// the pair it answered the tick before, which the response's nearest contacts did not hold.
 #[derive(Clone, Copy, Debug)]
 struct Remembered {
