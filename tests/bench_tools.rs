@@ -310,5 +310,11 @@ fn bench_bodies_quick_writes_consistent_figures() {
             .unwrap()
             .contains("two_organs landing")
     );
+    // The crushed pair, 162 nodes a body with `--quick`: 500 ticks, the net's answers a tick.
+    let crushed = r["crushed"].as_array().expect("crushed");
+    assert_eq!(crushed.len(), 1);
+    assert_eq!(finite(&crushed[0]["nodes_per_body"]), 162.0);
+    assert_eq!(finite(&crushed[0]["ticks"]["samples"]), 500.0);
+    finite(&crushed[0]["net_collisions_per_tick"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -15,7 +15,8 @@
 //! * `bodies`: the body–body contact stage and the whole tick for organs apart, touching,
 //!   stacked in twos and (4 organs) in a tower that topples into a heap (2 and 4 organs of 162 and
 //!   642 nodes), the laparoscopy scene's tick distribution with the demo's two tools, per stage,
-//!   and a ball's landing on an organ (`scenes/two_organs.toml`) with the collision net's answers.
+//!   a ball's landing on an organ (`scenes/two_organs.toml`) with the collision net's answers, and
+//!   a light organ crushed against the table by a heavy one.
 //! * `reference`: palpa's whole tick on a 10 242-node organ (no contact) against the plain reference
 //!   step ([`reference`]: array of structs, scalar `f64`) of the same system, in the same run, best
 //!   of three, after checking that both step the same system.
@@ -60,7 +61,7 @@ enum Cmd {
     Grasp(GraspArgs),
     /// Body–body contact stage and whole tick against the number of bodies and nodes (apart,
     /// touching, stacked), per stage; the laparoscopy scene's tick distribution with both tools; a
-    /// ball's landing on an organ.
+    /// ball's landing on an organ; a light organ crushed by a heavy one.
     Bodies(GraspArgs),
     /// palpa's tick against the plain reference step of the same model (array of structs, scalar
     /// f64), same organ, same run.
@@ -921,6 +922,19 @@ fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
     text
 }
 
+/// A 5 kg organ laid on a 0.06 kg one of a tenth of the default stiffnesses (ellipsoids of
+/// `subdivisions`), which it crushes flat against the table (the pair of
+/// `tests/body_contact.rs`' `HEAVY_ON_FLIMSY`).
+fn crushed_scene(subdivisions: u32) -> String {
+    format!(
+        "[[obstacle]]\nname = \"table\"\nplane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}\n\n\
+         [[body]]\nname = \"light\"\nmesh = {{ ellipsoid = {{ radii = [0.08, 0.06, 0.03], subdivisions = {subdivisions} }} }}\n\
+         position = [0.0, 0.0, 0.0301]\nsurface_mass = 0.02\nrigid_mass = 0.04\nsurface_stiffness = 20.0\nlink_stiffness = 10.0\n\n\
+         [[body]]\nname = \"heavy\"\nmesh = {{ ellipsoid = {{ radii = [0.06, 0.05, 0.04], subdivisions = {subdivisions} }} }}\n\
+         position = [0.0, 0.0, 0.11]\nsurface_mass = 1.0\nrigid_mass = 4.0\nsurface_stiffness = 80.0\nlink_stiffness = 60.0\n"
+    )
+}
+
 /// The shipped two-organ scene (a soft ball dropped on an organ), for the landing's cost.
 const TWO_ORGANS: &str = include_str!("../../scenes/two_organs.toml");
 
@@ -940,7 +954,7 @@ fn bodies(args: GraspArgs) -> Result<()> {
             }
         }
     }
-    let mut progress = Progress::new("bodies", cases.len() * reps + 2 * reps);
+    let mut progress = Progress::new("bodies", cases.len() * reps + (2 + levels.len()) * reps);
     let command = format!(
         "palpa-bench bodies{} --out {}",
         if args.quick { " --quick" } else { "" },
@@ -1091,10 +1105,47 @@ fn bodies(args: GraspArgs) -> Result<()> {
          | --- | --- | --- | --- | --- | --- | --- |\n"
     );
     md += &spread_row("two_organs landing", &landing_spread);
+    // A light organ crushed flat against the table by a heavy one (5 kg on 0.06 kg), ticks
+    // 500–1 000: where the response's contacts hold least and the net answers most.
+    md += &format!(
+        "\nA 5 kg organ crushing a 0.06 kg one against the table, ticks 500–1 000, {reps} run(s) \
+         pooled:\n\n\
+         | nodes per organ | samples | mean (µs) | p50 | p99 | p99.9 | max | net collisions a tick |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |\n"
+    );
+    let mut crushed = Vec::new();
+    for &level in levels {
+        let scene = palpa::scene::parse_scene(&crushed_scene(level), "crushed", Path::new("."))
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let (mut ticks, mut net) = (Vec::new(), 0u64);
+        let mut nodes = 0;
+        for _ in 0..reps {
+            let mut world = World::from_scene(&scene);
+            nodes = world.bodies[0].node_count();
+            for tick in 0..1000 {
+                let start = Instant::now();
+                world.step();
+                if tick >= 500 {
+                    ticks.push(start.elapsed().as_secs_f64() * 1e6);
+                    net += u64::from(world.counters.bodies.collisions);
+                }
+            }
+            progress.step("crushed");
+        }
+        let per_tick = net as f64 / ticks.len().max(1) as f64;
+        let spread = spread_of(ticks);
+        // (The spread's row, with the net's collisions a tick as a last column.)
+        let row = spread_row(&nodes.to_string(), &spread);
+        md += &format!("{} {per_tick:.1} |\n", row.trim_end());
+        crushed.push(json!({
+            "nodes_per_body": nodes, "ticks": spread, "net_collisions_per_tick": per_tick,
+        }));
+    }
     let result = json!({
         "command": command, "date": today(), "machine": machine(), "repetitions": reps,
         "layouts": rows, "laparoscopy": spread, "laparoscopy_stages_us": stages,
         "landing": landing_spread, "landing_net_collisions_per_run": net_per_run,
+        "crushed": crushed,
     });
     std::fs::write(
         args.out.join("bodies.json"),
