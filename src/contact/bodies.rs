@@ -2418,8 +2418,8 @@ pub fn respond_to_body_contacts(
             }
         }
     }
+    let known = |k: usize| k < bodies.len() && same_topology(&scratch.warm_versions, bodies, k);
     for (r, &taken) in remembered.iter().zip(taken.iter()) {
-        let known = |k: usize| k < bodies.len() && same_topology(&scratch.warm_versions, bodies, k);
         let idle = r.last_impulse == 0.0 && !r.answered;
         if taken || idle || !known(r.nodes[0].body) || !known(r.nodes[3].body) {
             continue;

@@ -935,6 +935,30 @@ fn crushed_scene(subdivisions: u32) -> String {
     )
 }
 
+/// `reps` runs of `scene` stepped to the end of `window`: the ticks' times in `window` (µs), and
+/// the collisions the net answered over them.
+fn ticks_and_net_collisions(
+    scene: &palpa::Scene,
+    window: std::ops::Range<u64>,
+    reps: usize,
+    (progress, what): (&mut Progress, &str),
+) -> (Vec<f64>, u64) {
+    let (mut ticks, mut net) = (Vec::new(), 0u64);
+    for _ in 0..reps {
+        let mut world = World::from_scene(scene);
+        for tick in 0..window.end {
+            let start = Instant::now();
+            world.step();
+            if window.contains(&tick) {
+                ticks.push(start.elapsed().as_secs_f64() * 1e6);
+                net += u64::from(world.counters.bodies.collisions);
+            }
+        }
+        progress.step(what);
+    }
+    (ticks, net)
+}
+
 /// The shipped two-organ scene (a soft ball dropped on an organ), for the landing's cost.
 const TWO_ORGANS: &str = include_str!("../../scenes/two_organs.toml");
 
@@ -1082,24 +1106,12 @@ fn bodies(args: GraspArgs) -> Result<()> {
     // collision net answered over it.
     let landing = palpa::scene::parse_scene(TWO_ORGANS, "scenes/two_organs.toml", Path::new("."))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (mut landing_ticks, mut net_collisions) = (Vec::new(), 0u64);
-    for _ in 0..reps {
-        let mut world = World::from_scene(&landing);
-        for tick in 0..300 {
-            let start = Instant::now();
-            world.step();
-            if tick >= 100 {
-                landing_ticks.push(start.elapsed().as_secs_f64() * 1e6);
-                net_collisions += u64::from(world.counters.bodies.collisions);
-            }
-        }
-        progress.step("landing");
-    }
+    let (landing_ticks, net_collisions) =
+        ticks_and_net_collisions(&landing, 100..300, reps, (&mut progress, "landing"));
     let landing_spread = spread_of(landing_ticks);
     let net_per_run = net_collisions / reps as u64;
     md += &format!(
-        "
-`scenes/two_organs.toml` (a soft ball landing on an organ), ticks 100–300, {reps} run(s) \
+        "\n`scenes/two_organs.toml` (a soft ball landing on an organ), ticks 100–300, {reps} run(s) \
          pooled; the collision net answered {net_per_run} collisions a run:\n\n\
          | scene | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
          | --- | --- | --- | --- | --- | --- | --- |\n"
@@ -1117,21 +1129,9 @@ fn bodies(args: GraspArgs) -> Result<()> {
     for &level in levels {
         let scene = palpa::scene::parse_scene(&crushed_scene(level), "crushed", Path::new("."))
             .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let (mut ticks, mut net) = (Vec::new(), 0u64);
-        let mut nodes = 0;
-        for _ in 0..reps {
-            let mut world = World::from_scene(&scene);
-            nodes = world.bodies[0].node_count();
-            for tick in 0..1000 {
-                let start = Instant::now();
-                world.step();
-                if tick >= 500 {
-                    ticks.push(start.elapsed().as_secs_f64() * 1e6);
-                    net += u64::from(world.counters.bodies.collisions);
-                }
-            }
-            progress.step("crushed");
-        }
+        let nodes = World::from_scene(&scene).bodies[0].node_count();
+        let (ticks, net) =
+            ticks_and_net_collisions(&scene, 500..1000, reps, (&mut progress, "crushed"));
         let per_tick = net as f64 / ticks.len().max(1) as f64;
         let spread = spread_of(ticks);
         // (The spread's row, with the net's collisions a tick as a last column.)
