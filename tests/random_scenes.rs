@@ -9,85 +9,78 @@
 //! something. `PALPA_SCENES=N PALPA_SEED=S` runs N scenes from seed S (16 from 0 by default; 60
 //! more from seed 1000 were run once, see the README's **Bad input**).
 
+mod common;
+
+use common::{Rng, env_or};
 use palpa::world::World;
 use std::path::Path;
 
-/// A small deterministic generator (the same scenes on every machine).
-struct Lcg(u64);
-
-impl Lcg {
-    /// Uniform in [0, 1).
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.next()
-    }
+/// Draws from [`common::Rng`] for the scene's numbers.
+trait Draw {
+    fn range(&mut self, a: f64, b: f64) -> f64;
     /// Uniform in log between `a` and `b` (both positive).
-    fn log(&mut self, a: f64, b: f64) -> f64 {
-        (a.ln() + (b.ln() - a.ln()) * self.next()).exp()
+    fn log(&mut self, a: f64, b: f64) -> f64;
+}
+
+impl Draw for Rng {
+    fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.unit()
     }
-    fn pick(&mut self, n: usize) -> usize {
-        ((self.next() * n as f64) as usize).min(n - 1)
+
+    fn log(&mut self, a: f64, b: f64) -> f64 {
+        (a.ln() + (b.ln() - a.ln()) * self.unit()).exp()
     }
 }
 
 /// The scene text of `seed` (SI units; a table at z = 0 in every scene).
 fn random_scene(seed: u64) -> String {
-    let mut r = Lcg(seed.wrapping_mul(0x9E3779B97F4A7C15) ^ 0x1234);
-    for _ in 0..4 {
-        r.next();
-    }
-    let integrator = ["symplectic", "implicit", "multirate"][r.pick(3)];
+    let mut r = Rng(seed);
+    let integrator = ["symplectic", "implicit", "multirate"][r.below(3)];
     let mut t = format!(
         "[world]\nintegrator = \"{integrator}\"\nair_viscosity = {}\n",
         r.range(0.0, 3.0)
     );
-    if r.next() < 0.3 {
+    if r.unit() < 0.3 {
         t += "gravity = [0.0, 0.0, 0.0]\n";
     }
     t += "\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\n";
-    if r.next() < 0.3 {
+    if r.unit() < 0.3 {
         t += &format!(
             "\n[[obstacle]]\nname = \"block\"\nbox = {{ center = [{}, 0.0, 0.02], size = [0.04, 0.04, 0.04] }}\n",
             r.range(-0.1, 0.1)
         );
     }
-    let count = 2 + r.pick(3);
+    let count = 2 + r.below(3);
     let mut names = Vec::new();
     for k in 0..count {
-        let mesh = match r.pick(4) {
+        let mesh = match r.below(4) {
             0 => format!(
                 "{{ ellipsoid = {{ radii = [{}, {}, {}], subdivisions = {} }} }}",
                 r.range(0.01, 0.06),
                 r.range(0.01, 0.05),
                 r.range(0.008, 0.04),
-                1 + r.pick(3)
+                1 + r.below(3)
             ),
             1 => format!(
                 "{{ icosphere = {{ radius = {}, subdivisions = {} }} }}",
                 r.range(0.01, 0.05),
-                1 + r.pick(3)
+                1 + r.below(3)
             ),
             2 => format!(
                 "{{ capsule = {{ radius = {}, length = {}, around = {} }} }}",
                 r.range(0.004, 0.02),
                 r.range(0.02, 0.12),
-                6 + r.pick(8)
+                6 + r.below(8)
             ),
             _ => format!(
                 "{{ box = {{ size = [{}, {}, {}], subdivisions = {} }} }}",
                 r.range(0.02, 0.08),
                 r.range(0.02, 0.08),
                 r.range(0.01, 0.05),
-                1 + r.pick(3)
+                1 + r.below(3)
             ),
         };
-        let layout = r.pick(3);
+        let layout = r.below(3);
         let (x, y, z) = match layout {
             0 => (
                 r.range(-0.02, 0.02),
@@ -104,9 +97,9 @@ fn random_scene(seed: u64) -> String {
         let name = format!("b{k}");
         t += &format!(
             "\n[[body]]\nname = \"{name}\"\nmesh = {mesh}\nposition = [{x}, {y}, {z}]\nvelocity = [{}, {}, {}]\nsurface_mass = {}\nrigid_mass = {}\nsurface_stiffness = {}\nsurface_damping = {}\nlink_stiffness = {}\nlink_damping = {}\nfriction = {}\n",
-            r.range(-1.0, 1.0) * if r.next() < 0.3 { 3.0 } else { 0.0 },
-            r.range(-1.0, 1.0) * if r.next() < 0.3 { 3.0 } else { 0.0 },
-            r.range(-3.0, 0.5) * if r.next() < 0.3 { 1.0 } else { 0.0 },
+            r.range(-1.0, 1.0) * if r.unit() < 0.3 { 3.0 } else { 0.0 },
+            r.range(-1.0, 1.0) * if r.unit() < 0.3 { 3.0 } else { 0.0 },
+            r.range(-3.0, 0.5) * if r.unit() < 0.3 { 1.0 } else { 0.0 },
             r.log(0.002, 3.0),
             r.log(0.002, 5.0),
             r.log(0.5, 500.0),
@@ -115,7 +108,7 @@ fn random_scene(seed: u64) -> String {
             r.log(0.001, 1.0),
             r.range(0.0, 1.0)
         );
-        match r.pick(8) {
+        match r.below(8) {
             0 => t += "cutting = {}\n",
             1 => t += "tearing = { strain = 0.3, ticks = 20, max_pieces = 8 }\n",
             2 => t += "subdivision = {}\n",
@@ -125,12 +118,12 @@ fn random_scene(seed: u64) -> String {
         }
         names.push(name);
     }
-    for a in 0..r.pick(3) {
-        let body = &names[r.pick(names.len())];
-        let to = if r.next() < 0.5 {
+    for a in 0..r.below(3) {
+        let body = &names[r.below(names.len())];
+        let to = if r.unit() < 0.5 {
             "world".to_string()
         } else {
-            names[r.pick(names.len())].clone()
+            names[r.below(names.len())].clone()
         };
         if &to == body {
             continue;
@@ -145,8 +138,8 @@ fn random_scene(seed: u64) -> String {
             r.log(0.001, 0.05)
         );
     }
-    for k in 0..r.pick(3) {
-        let shape = match r.pick(3) {
+    for k in 0..r.below(3) {
+        let shape = match r.below(3) {
             0 => format!("{{ sphere = {{ radius = {} }} }}", r.range(0.002, 0.015)),
             1 => "{ blade = { length = 0.03, thickness = 0.0005 } }".to_string(),
             _ => "{ grasper = { jaw_length = 0.015, radius = 0.0015 } }".to_string(),
@@ -162,7 +155,7 @@ fn random_scene(seed: u64) -> String {
             );
             time += r.range(0.05, 0.3);
         }
-        let force = if r.next() < 0.5 {
+        let force = if r.unit() < 0.5 {
             format!("max_force = {}\n", r.log(1.0, 50.0))
         } else {
             String::new()
@@ -176,13 +169,7 @@ fn random_scene(seed: u64) -> String {
 
 #[test]
 fn random_scenes_step_without_panic_and_stay_finite() {
-    let number = |name: &str, default: u64| {
-        std::env::var(name)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(default)
-    };
-    let (first, count) = (number("PALPA_SEED", 0), number("PALPA_SCENES", 16));
+    let (first, count): (u64, u64) = (env_or("PALPA_SEED", 0), env_or("PALPA_SCENES", 16));
     let mut accepted = 0;
     for seed in first..first + count {
         let text = random_scene(seed);
