@@ -288,6 +288,9 @@ struct ParamBox {
     t_cuts: u32,
     u: Dyadic,
     v: Dyadic,
+    /// Cuts of all three parameters that made the box (t_cuts plus the levels of u and v), kept
+    /// so that [`priority`], which the queue computes often, needs no level from a width.
+    depth: u32,
 }
 
 impl ParamBox {
@@ -296,6 +299,7 @@ impl ParamBox {
         t_cuts: 0,
         u: Dyadic::WHOLE,
         v: Dyadic::WHOLE,
+        depth: 0,
     };
 
     /// The two parts of the box cut along parameter `param` (0 = t, at `t_cut`; 1 = u; 2 = v).
@@ -318,6 +322,8 @@ impl ParamBox {
                 upper.v = self.v.upper_half();
             }
         }
+        lower.depth += 1;
+        upper.depth += 1;
         [lower, upper]
     }
 }
@@ -344,8 +350,8 @@ fn time_middle(t: (f64, f64)) -> Option<f64> {
 #[inline(always)]
 fn priority(b: &ParamBox) -> u128 {
     let start = u128::from(b.t.0.to_bits());
-    let depth = b.t_cuts + b.u.level() + b.v.level();
-    (start << 32) | u128::from(u32::MAX - depth)
+    debug_assert_eq!(b.depth, b.t_cuts + b.u.level() + b.v.level());
+    (start << 32) | u128::from(u32::MAX - b.depth)
 }
 
 /// A binary min-heap of boxes by [`priority`] in a fixed array: no allocation, and no
