@@ -523,17 +523,37 @@ const HEAVY_ON_FLIMSY: &str = r#"
 ///   1000 ticks; the rows now reach as far as twice the fastest listed node moves over the tick.
 ///   The net answered 80 collisions a tick there, most of them the same edges frozen at their
 ///   start tick after tick, until the response took edges that start within the skin of each
-///   other and cross (see `edge_edge_crossed_from_near` in `src/contact/bodies.rs`): 82 a tick
-///   over the second half before, 30 now.
+///   other and cross (see `edge_edge_crossed_from_near` in `src/contact/bodies.rs`).
 ///
-/// No node of either ends a tick below the table, and none is inside the other organ.
+///   How many it answers over the second half depends on the drop height by chance (any change
+///   to the contact code or the CCD moves it by ±10 a tick), so this case is dropped from eight
+///   heights, 0 to 1 mm above the first, and their mean is asserted. Measured on 2026-12-04 at
+///   the eight heights: 35.3, 38.2, 43.3, 45.0, 33.0, 54.3, 38.7, 60.8 a tick (mean 43.6); with
+///   `edge_edge_crossed_from_near` switched off (the broken variant): 91.4, 77.1, 78.9, 67.2,
+///   79.9, 73.5, 82.3, 71.4 (mean 77.7). The bound, 60, is about midway; no height is asserted
+///   alone (the broken variant's least, 67.2, and the sound one's most, 60.8, are 6 apart).
+///
+/// No node of either ends a tick below the table, and none is inside the other organ, at any
+/// height.
 #[test]
 fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
-    for (name, text, ticks) in [
-        ("default pair", SOFT_PAIR, 1500),
-        ("5 kg on 0.06 kg", HEAVY_ON_FLIMSY, 1000),
-    ] {
-        let mut world = World::from_scene(&common::scene(text));
+    // The heavy organ's drop heights above the scene's (m).
+    const RAISED: [f64; 8] = [0.0, 1e-5, 2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3];
+    let mut cases = vec![("default pair".to_string(), SOFT_PAIR.to_string(), 1500)];
+    for dz in RAISED {
+        let heavy_at = "position = [0.0, 0.0, 0.11]";
+        assert!(HEAVY_ON_FLIMSY.contains(heavy_at));
+        let text =
+            HEAVY_ON_FLIMSY.replace(heavy_at, &format!("position = [0.0, 0.0, {}]", 0.11 + dz));
+        cases.push((
+            format!("5 kg on 0.06 kg, {:.2} mm higher", dz * 1e3),
+            text,
+            1000,
+        ));
+    }
+    let mut heavy_collisions = Vec::new();
+    for (name, text, ticks) in cases {
+        let mut world = World::from_scene(&common::scene(&text));
         let mut lowest = f64::INFINITY;
         let (mut pressed, mut below, mut late_collisions) = (0, 0, 0);
         for k in 1..=ticks {
@@ -567,12 +587,15 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
              collisions a tick over the second half {collisions_a_tick:.1}; {:?}",
             world.counters.bodies
         );
-        // Edges of the heavy organ that started on the light one's and ran through them by more
-        // than the skin were left to the net, which froze them every tick: 80 a tick then.
-        assert!(
-            collisions_a_tick < 40.0,
-            "{name}: {collisions_a_tick} net collisions a tick"
-        );
+        if name.starts_with("5 kg") {
+            heavy_collisions.push(collisions_a_tick);
+        } else {
+            // Two organs of the default parameters: the net has little to stop there.
+            assert!(
+                collisions_a_tick < 40.0,
+                "{name}: {collisions_a_tick} net collisions a tick"
+            );
+        }
         assert!(
             pressed > ticks / 3,
             "{name}: the lower organ was not pressed flat: {pressed}"
@@ -582,6 +605,17 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
             "{name}: a node ended a tick {lowest} m into the table ({below} ticks)"
         );
     }
+    // Edges of the heavy organ that started on the light one's and ran through them by more than
+    // the skin were left to the net, which froze them every tick: 67 to 91 a tick then.
+    let mean = heavy_collisions.iter().sum::<f64>() / heavy_collisions.len() as f64;
+    println!(
+        "5 kg on 0.06 kg: net collisions a tick over the second half {heavy_collisions:.1?}, mean {mean:.1}"
+    );
+    assert_eq!(heavy_collisions.len(), RAISED.len());
+    assert!(
+        mean < 60.0,
+        "5 kg on 0.06 kg: {mean} net collisions a tick on average over the heights"
+    );
 }
 
 /// Two organs of the default parameters stacked (the lower one is pressed flat under the upper, its
