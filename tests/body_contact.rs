@@ -625,53 +625,116 @@ fn an_organ_pressed_against_the_table_by_another_is_not_pushed_into_it() {
     );
 }
 
-/// Two organs of the default parameters stacked (the lower one is pressed flat under the upper, its
-/// two sheets closer than the contact skin) and pressed by a probe from 1.5 to 2.5 s, laid at four
-/// heights: the upper organ comes to rest within a second of the probe leaving (below 1e-5 J at
-/// every tick from 0.5 to 1 s after it), the collision net has nothing to stop after the probe left,
-/// and no node is ever inside the other organ.
+/// Two organs stacked (the lower one is pressed flat under the upper, its two sheets closer than
+/// the contact skin) and pressed by a probe from 1.5 to 2.5 s, laid at four heights, run to 6.5 s
+/// after the probe left; returns the probe's largest force, then the upper organ's largest kinetic
+/// energy 0.5 to 1 s and 3 to 5 s after the probe left (J), and asserts that the collision net has
+/// nothing to stop from 0.5 s after the probe left and that no node is ever inside the other organ.
+fn stacked_pair_pressed(lift: f64, link_damping: Option<f64>) -> (f64, f64, f64) {
+    let pair = SOFT_PAIR.replace("0.076]", &format!("{:?}]", 0.076 + lift));
+    let pair = match link_damping {
+        Some(c) => pair.replace(
+            "subdivisions = 2 } }\n",
+            &format!("subdivisions = 2 }} }}\n    link_damping = {c:?}\n"),
+        ),
+        None => pair,
+    };
+    assert_eq!(
+        pair.matches("link_damping").count(),
+        if link_damping.is_some() { 2 } else { 0 }
+    );
+    let text = format!("{pair}\n{}", pressing_probe(0.03, 0.011));
+    let mut world = World::from_scene(&common::scene(&text));
+    let (mut pressed, mut left) = (0.0f64, 0usize);
+    let mut kinetic = vec![0.0; 9000];
+    for (k, kinetic) in kinetic.iter_mut().enumerate().skip(1) {
+        world.step();
+        let force = world.tools[0].feedback.force_in_world.norm();
+        pressed = pressed.max(force);
+        if force > 0.0 {
+            left = k;
+        }
+        *kinetic = world.bodies[1].kinetic_energy();
+        if left > 0 && k > left + 500 {
+            assert_eq!(
+                world.counters.bodies.collisions, 0,
+                "net collisions at tick {k}"
+            );
+        }
+        if k % 100 == 0 {
+            assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
+        }
+    }
+    assert!(
+        left > 1500 && left + 5000 < kinetic.len(),
+        "the probe left at tick {left}"
+    );
+    let most = |from: usize, to: usize| {
+        kinetic[left + from..left + to]
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+    };
+    (pressed, most(500, 1000), most(3000, 5000))
+}
+
+/// Two organs of the default parameters stacked and pressed ([`stacked_pair_pressed`]) come to rest
+/// and stay at rest: the upper organ's kinetic energy stays below 1e-6 J from 3 to 5 s after the
+/// probe left (1.4e-7 to 1.5e-7 J measured). They take longer than a second: 2.2e-4 to 2.5e-4 J
+/// 0.5 to 1 s after the probe left (printed). That bounce of the upper organ's rigid component on
+/// the links of its nodes held by the contact loses its energy at about their damping over its mass
+/// (3 s⁻¹, the default link damping of 0.05 N·s/m a node): the scene's physics, not the contact's
+/// (the damped pair of the next test comes to rest within the second).
+/// The pair rested only while the response's solve had not converged: its four sweeps took the
+/// obstacle's rows from nothing every tick, so the nodes of the upper organ over the lower one's
+/// sheets on the table ended each solve still closing on them, at up to 23 mm/s, parted again
+/// afterwards, and kept that velocity without moving: kinetic energy that was no motion, which
+/// damped the bounce and, at 3 to 10 s, shook the pair up to 35 µJ again. Warm-started rows
+/// converge: 1.4e-7 J here, 3 to 5 s after the probe left (without the rows' warm start the
+/// assertion fails).
 /// The vertices of the upper organ pressed into the folds of the flattened lower one lie on two or
 /// three of its faces; with one contact a vertex (its nearest face) the response pushed them through
 /// the others, until a pressed vertex took a contact with each face it crossed (`crossed_too`). And
 /// a vertex on the upper sheet, pushed a little into it over the tick, ends nearer the lower sheet,
 /// behind which it started: its contact with that sheet pushed it out through the upper one, the
-/// net stopped it at its start every tick (0.7 to 19 collisions a tick over five heights) and single
-/// ticks reached 1.6e-5 to 6.3e-5 J, until the response passed over such a face for the next.
+/// net stopped it at its start every tick (0.7 to 19 collisions a tick over five heights),
+/// until the response passed over such a face for the next.
 #[test]
 fn two_soft_organs_stacked_and_pressed_come_to_rest_with_no_net_collision() {
     for lift in [0.0, 2e-5, 1e-4, 3e-4] {
-        let text = format!(
-            "{}\n{}",
-            SOFT_PAIR.replace("0.076]", &format!("{:?}]", 0.076 + lift)),
-            pressing_probe(0.03, 0.011)
-        );
-        let mut world = World::from_scene(&common::scene(&text));
-        let (mut pressed, mut collisions, mut most_kinetic) = (0.0f64, 0u64, 0.0f64);
-        for k in 1..=3500 {
-            world.step();
-            pressed = pressed.max(world.tools[0].feedback.force_in_world.norm());
-            if k > 2500 {
-                collisions += u64::from(world.counters.bodies.collisions);
-            }
-            if k >= 3000 {
-                most_kinetic = most_kinetic.max(world.bodies[1].kinetic_energy());
-            }
-            if k % 100 == 0 {
-                assert_eq!(common::nodes_inside_others(&world), 0, "tick {k}");
-            }
-        }
+        let (pressed, within_a_second, later) = stacked_pair_pressed(lift, None);
         println!(
-            "laid {:.2} mm higher: probe pressed up to {pressed:.3} N; upper organ's kinetic energy 0.5 to 1 s after the probe left at most {most_kinetic:.2e} J (any tick; lower organ {:.2e} J at 3.5 s); net collisions from 2.5 to 3.5 s {collisions}; {:?}",
-            lift * 1e3,
-            world.bodies[0].kinetic_energy(),
-            world.counters.bodies
+            "laid {:.2} mm higher: probe pressed up to {pressed:.3} N; upper organ's kinetic energy at most {within_a_second:.2e} J 0.5 to 1 s after the probe left, {later:.2e} J 3 to 5 s after",
+            lift * 1e3
         );
         assert!(pressed > 0.5, "the probe did not press: {pressed} N");
         assert!(
-            most_kinetic < 1e-5,
-            "the upper organ did not come to rest: {most_kinetic} J"
+            later < 1e-6,
+            "the upper organ did not stay at rest: {later} J"
         );
-        assert_eq!(collisions, 0, "net collisions after the probe left");
+    }
+}
+
+/// The same pair with four times the default link damping (0.2 N·s/m a node) comes to rest within a
+/// second of the probe leaving: the upper organ's kinetic energy stays below 1e-5 J from 0.5 to 1 s
+/// after it (5.9e-6 J measured at every height), and below 1e-8 J from 3 to 5 s.
+#[test]
+fn two_damped_organs_stacked_and_pressed_come_to_rest_within_a_second() {
+    for lift in [0.0, 1e-4] {
+        let (pressed, within_a_second, later) = stacked_pair_pressed(lift, Some(0.2));
+        println!(
+            "laid {:.2} mm higher: probe pressed up to {pressed:.3} N; upper organ's kinetic energy at most {within_a_second:.2e} J 0.5 to 1 s after the probe left, {later:.2e} J 3 to 5 s after",
+            lift * 1e3
+        );
+        assert!(pressed > 0.5, "the probe did not press: {pressed} N");
+        assert!(
+            within_a_second < 1e-5,
+            "the upper organ did not come to rest within a second: {within_a_second} J"
+        );
+        assert!(
+            later < 1e-8,
+            "the upper organ did not stay at rest: {later} J"
+        );
     }
 }
 
