@@ -825,12 +825,10 @@ impl ContactFunction {
                 // A root at the box's start time, where the least-squares witness missed it (F
                 // least along a whole line of (u, v), parallel edges, and that line's own least
                 // point a near miss rounding tells apart): the witness at the root's (u, v).
-                Some(NewtonRoot::AtStart(u, v)) => {
-                    if self.witness_at_point(t_lo, t_hi, u, v) {
-                        return Verdict::Accept;
-                    }
+                Some(NewtonRoot::AtStart(u, v)) if self.witness_at_point(t_lo, t_hi, u, v) => {
+                    return Verdict::Accept;
                 }
-                None => {}
+                _ => {}
             }
         }
         let mut best: Option<usize> = None;
@@ -1050,15 +1048,7 @@ impl ContactFunction {
     /// analysis in [`ContactFunction::new`], whose bound covers any t, u, v in [0, 1].
     #[inline(always)]
     fn witness_at(&self, t: f64, t_end: f64) -> bool {
-        let s = 1.0 - t;
-        let mut d = [0.0f64; 3];
-        let mut e = [0.0f64; 3];
-        let mut g = [0.0f64; 3];
-        for k in 0..3 {
-            d[k] = s * self.d[0][k] + t * self.d[1][k];
-            e[k] = s * self.e[0][k] + t * self.e[1][k];
-            g[k] = s * self.g[0][k] + t * self.g[1][k];
-        }
+        let (d, e, g) = self.at_time(t);
         let (u, v) = nearest_parameters(&d, &e, &g, self.triangle);
         self.witness_check(t, t_end, u, v, &d, &e, &g)
     }
@@ -1066,6 +1056,13 @@ impl ContactFunction {
     /// [`ContactFunction::witness_at`] at a given (u, v) (a root Newton's method found).
     #[inline(always)]
     fn witness_at_point(&self, t: f64, t_end: f64, u: f64, v: f64) -> bool {
+        let (d, e, g) = self.at_time(t);
+        self.witness_check(t, t_end, u, v, &d, &e, &g)
+    }
+
+    /// D, E and G at time t, each interpolated between its values at the tick's start and end.
+    #[inline(always)]
+    fn at_time(&self, t: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
         let s = 1.0 - t;
         let mut d = [0.0f64; 3];
         let mut e = [0.0f64; 3];
@@ -1075,7 +1072,7 @@ impl ContactFunction {
             e[k] = s * self.e[0][k] + t * self.e[1][k];
             g[k] = s * self.g[0][k] + t * self.g[1][k];
         }
-        self.witness_check(t, t_end, u, v, &d, &e, &g)
+        (d, e, g)
     }
 
     /// The witness's check at the candidate (u, v), D, E and G being evaluated at t.
@@ -1402,10 +1399,9 @@ impl ContactFunction {
             let bound = ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1])
                 + r[2].abs() * weight[2];
             let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
-            for i in 0..2 {
-                for j in 0..n {
-                    let x =
-                        (r[0] * values[0][i][j] + r[1] * values[1][i][j]) + r[2] * values[2][i][j];
+            for ((x0, x1), x2) in values[0].iter().zip(&values[1]).zip(&values[2]) {
+                for ((a, b), c) in x0.iter().zip(x1).zip(x2).take(n) {
+                    let x = (r[0] * a + r[1] * b) + r[2] * c;
                     min = min.min(x);
                     max = max.max(x);
                 }
