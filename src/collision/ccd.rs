@@ -1269,21 +1269,9 @@ impl ContactFunction {
         let weight: [f64; 3] =
             std::array::from_fn(|k| self.row_error[k] + 4.0 * epsilon * magnitude[k]);
         // All five bounds first, side by side (each summed in the same order as one at a time).
-        let bounds = directions.map(|r| {
-            ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1])
-                + r[2].abs() * weight[2]
-        });
+        let bounds = directions.map(|r| row_bound(&r, &weight));
         for (r, bound) in directions.iter().zip(bounds) {
-            let mut x = [[0.0f64; 4]; 2];
-            // Indexed loops: measurably faster here than the zipped iterators clippy suggests.
-            for i in 0..2 {
-                for j in 0..4 {
-                    x[i][j] = (r[0] * corners[0][i][j] + r[1] * corners[1][i][j])
-                        + r[2] * corners[2][i][j];
-                }
-            }
-            let (min, max) = min_max(&x);
-            if min > bound || max < -bound {
+            if corners_apart(r, bound, corners) {
                 return true;
             }
         }
@@ -1294,19 +1282,32 @@ impl ContactFunction {
             let e_at = [e[0][i], e[1][i], e[2][i]];
             let g_at = [g[0][i], g[1][i], g[2][i]];
             let r = scaled_to_unit_exponent(cross(&e_at, &g_at));
-            let bound = ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1])
-                + r[2].abs() * weight[2];
-            let mut x = [[0.0f64; 4]; 2];
-            for i in 0..2 {
-                for j in 0..4 {
-                    x[i][j] = (r[0] * corners[0][i][j] + r[1] * corners[1][i][j])
-                        + r[2] * corners[2][i][j];
-                }
-            }
-            let (min, max) = min_max(&x);
-            min > bound || max < -bound
+            corners_apart(&r, row_bound(&r, &weight), corners)
         })
     }
+}
+
+/// The rounding bound of the combination `r` of F's coordinates, each coordinate's error weighed
+/// by `weight` (with the error floor of an axis on which F is exactly 0).
+#[inline(always)]
+fn row_bound(r: &[f64; 3], weight: &[f64; 3]) -> f64 {
+    ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1]) + r[2].abs() * weight[2]
+}
+
+/// Whether the combination `r` of F's coordinates at a box's eight corners (`corners[k][i][j]`:
+/// coordinate k at time end i, corner j) lies wholly beyond `bound` on one side of 0.
+#[inline(always)]
+fn corners_apart(r: &[f64; 3], bound: f64, corners: &[[[f64; 4]; 2]; 3]) -> bool {
+    let mut x = [[0.0f64; 4]; 2];
+    // Indexed loops: measurably faster here than the zipped iterators clippy suggests.
+    #[allow(clippy::needless_range_loop)]
+    for i in 0..2 {
+        for j in 0..4 {
+            x[i][j] = (r[0] * corners[0][i][j] + r[1] * corners[1][i][j]) + r[2] * corners[2][i][j];
+        }
+    }
+    let (min, max) = min_max(&x);
+    min > bound || max < -bound
 }
 
 impl ContactFunction {
@@ -1396,8 +1397,7 @@ impl ContactFunction {
         let weight: [f64; 3] =
             std::array::from_fn(|k| self.row_error[k] + 4.0 * epsilon * magnitude[k]);
         directions.iter().any(|r| {
-            let bound = ((f64::MIN_POSITIVE + r[0].abs() * weight[0]) + r[1].abs() * weight[1])
-                + r[2].abs() * weight[2];
+            let bound = row_bound(r, &weight);
             let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
             for ((x0, x1), x2) in values[0].iter().zip(&values[1]).zip(&values[2]) {
                 for ((a, b), c) in x0.iter().zip(x1).zip(x2).take(n) {
