@@ -2119,11 +2119,15 @@ pub fn respond_to_body_contacts(
                     let positions = &sj.next_position_in_world;
                     while m < boxed.len() {
                         let lanes = (boxed.len() - m).min(LANES_OF_FACES);
-                        let corners = std::array::from_fn(|c| {
-                            std::array::from_fn(|l| {
-                                sj.triangles[boxed[m + l.min(lanes - 1)] as usize][c]
-                            })
-                        });
+                        // (Plain loops: nested `array::from_fn` compiled to a call per row
+                        // and its copy through the stack.)
+                        let mut corners = [[0u32; LANES_OF_FACES]; 3];
+                        for l in 0..LANES_OF_FACES {
+                            let triangle = sj.triangles[boxed[m + l.min(lanes - 1)] as usize];
+                            for c in 0..3 {
+                                corners[c][l] = triangle[c];
+                            }
+                        }
                         // SAFETY: the machine has AVX (checked when `simd` was set); the corners
                         // are nodes of body j (its triangles at its current topology).
                         let (distances, kept, scalar) =
@@ -2233,13 +2237,16 @@ pub fn respond_to_body_contacts(
                         // The last batch may hold fewer sides: its other lanes repeat the last
                         // side and their answers are not read.
                         let lanes = (sides.len() - m).min(LANES_OF_SIDES);
-                        let nodes = |e: usize| {
-                            std::array::from_fn(|l| sides[m + l.min(lanes - 1)].other[e])
-                        };
+                        let mut ends = [[0u32; LANES_OF_SIDES]; 2];
+                        for l in 0..LANES_OF_SIDES {
+                            let side = sides[m + l.min(lanes - 1)].other;
+                            ends[0][l] = side[0];
+                            ends[1][l] = side[1];
+                        }
                         // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
                         // are nodes of body j (listed from its triangles at its current topology).
                         let answer =
-                            unsafe { wide::edge_sides(&edge, positions, nodes(0), nodes(1)) };
+                            unsafe { wide::edge_sides(&edge, positions, ends[0], ends[1]) };
                         let (within, through, unordered) =
                             (answer.within, answer.through, answer.unordered);
                         for l in 0..lanes {
