@@ -2470,7 +2470,9 @@ pub fn respond_to_body_contacts(
     // The pair's coefficient, taken once for each run of contacts of the same pair of bodies.
     let mut pair_friction = ((usize::MAX, usize::MAX), 0.0);
     for k in 0..scratch.contacts.len() {
-        let mut c = scratch.contacts[k];
+        // In place, each contact and its nodes (the two are copied only where one before was
+        // dropped).
+        let c = &mut scratch.contacts[k];
         let (a, b) = (c.a[0].body, c.b[0].body);
         if pair_friction.0 != (a, b) {
             pair_friction = (
@@ -2479,7 +2481,10 @@ pub fn respond_to_body_contacts(
             );
         }
         c.friction = pair_friction.1;
-        let mut nodes = ContactNodes::of(bodies, &c, dt);
+        scratch.contact_nodes.push(ContactNodes::of(bodies, c, dt));
+        let Some(nodes) = scratch.contact_nodes.last_mut() else {
+            continue;
+        };
         // A contact whose free nodes have small weights (the heavy ones held by a tool) would move
         // them by many times the relative motion it corrects: its compliance is raised so that no
         // node moves by more than [`MAX_AMPLIFICATION`] times it (see the constant). The solve's
@@ -2502,6 +2507,7 @@ pub fn respond_to_body_contacts(
             }
         }
         if !listed {
+            scratch.contact_nodes.pop();
             counters.contacts_dropped += 1;
             continue;
         }
@@ -2511,9 +2517,10 @@ pub fn respond_to_body_contacts(
         if k >= remembered_from && remembered_kept == usize::MAX {
             remembered_kept = kept;
         }
-        scratch.contacts[kept] = c;
+        if kept != k {
+            scratch.contacts[kept] = scratch.contacts[k];
+        }
         kept += 1;
-        scratch.contact_nodes.push(nodes);
     }
     scratch.contacts.truncate(kept);
     let held_kept = held_kept.min(kept);
