@@ -2481,10 +2481,9 @@ pub fn respond_to_body_contacts(
             );
         }
         c.friction = pair_friction.1;
+        // (The kept contacts' nodes are listed: this contact's go in at `kept`.)
         scratch.contact_nodes.push(ContactNodes::of(bodies, c, dt));
-        let Some(nodes) = scratch.contact_nodes.last_mut() else {
-            continue;
-        };
+        let nodes = &mut scratch.contact_nodes[kept];
         // A contact whose free nodes have small weights (the heavy ones held by a tool) would move
         // them by many times the relative motion it corrects: its compliance is raised so that no
         // node moves by more than [`MAX_AMPLIFICATION`] times it (see the constant). The solve's
