@@ -3662,7 +3662,32 @@ fn swept_box(body: &Body, nodes: &[usize]) -> Aabb {
 /// Sweeps over `contacts` in order with accumulated impulses (normal ≥ 0, tangential within the
 /// Coulomb cone): a contact may close its gap down to the rest distance over a step and no more,
 /// and does not slip where friction holds. On the solver's node lists (no division but the cone's).
-fn solve(
+fn solve(nodes_of: &mut SolverNodes, lists: (&mut [Contact], &mut [ContactNodes]), dt: f64) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::dynamics::kernel::simd_available() {
+        // SAFETY: the machine has AVX (checked just above).
+        unsafe { solve_with_avx(nodes_of, lists, dt) };
+        return;
+    }
+    solve_sweeps(nodes_of, lists, dt);
+}
+
+/// [`solve_sweeps`] compiled with AVX (three-component vectors in one register where the compiler
+/// finds them; no fused multiply–add, so the same operations and bits as without): about 1 µs
+/// less in a stack of two 162-node organs (81 contacts), 39.1 → 38.1 µs for the body-contact
+/// stage, best of five interleaved runs. The machine must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn solve_with_avx(
+    nodes_of: &mut SolverNodes,
+    lists: (&mut [Contact], &mut [ContactNodes]),
+    dt: f64,
+) {
+    solve_sweeps(nodes_of, lists, dt);
+}
+
+#[inline(always)]
+fn solve_sweeps(
     nodes_of: &mut SolverNodes,
     (contacts, contact_nodes): (&mut [Contact], &mut [ContactNodes]),
     dt: f64,
