@@ -3673,9 +3673,9 @@ fn solve(nodes_of: &mut SolverNodes, lists: (&mut [Contact], &mut [ContactNodes]
 }
 
 /// [`solve_sweeps`] compiled with AVX (three-component vectors in one register where the compiler
-/// finds them; no fused multiply–add, so the same operations and bits as without): about 1 µs
-/// less in a stack of two 162-node organs (81 contacts), 39.1 → 38.1 µs for the body-contact
-/// stage, best of five interleaved runs. The machine must have AVX.
+/// finds them; no fused multiply–add, so the same operations and bits as without): about 1.3 µs
+/// less in a stack of two 162-node organs (81 contacts), 38.4 → 37.0 µs for the body-contact
+/// stage, best of six interleaved runs. The machine must have AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 unsafe fn solve_with_avx(
