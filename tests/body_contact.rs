@@ -1289,9 +1289,11 @@ fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
 /// nodes the probe holds, on both sides, and a free node of small weight asked that node to move
 /// by the inverse of its weight times the correction: the solve diverged to 1e15 m/s within a tick
 /// and the guard acted 21 and 22 times on the two organs (tick 2 002 first). With the contacts'
-/// amplification bounded, no node exceeds a fifth of the guard's speed limit and the guard stays
-/// quiet. (The organs do end up crossed where the probe holds both: see the README, "Twelfth
-/// session".)
+/// amplification bounded (eight times), the free nodes still reached 19.5 m/s near tick 2 000: such a
+/// contact asked them to undo its held nodes' own approach, about 2 m/s where the probe holds nodes
+/// anew. Kept only from adding to that approach, no node is faster than 2.4 m/s (asserted below
+/// 5 m/s; the probe itself moves at 6 cm/s) and the guard stays quiet. (The organs do end up crossed
+/// where the probe holds both: see the README, "Twelfth session".)
 #[test]
 fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
     let text = r#"
@@ -1348,8 +1350,5 @@ script = [
         "the probe did not crush the stack: {pressed} N"
     );
     assert_eq!(events, [0, 0], "the guard acted");
-    assert!(
-        fastest < 0.2 * palpa::dynamics::guard::MAX_SPEED,
-        "a node reached {fastest} m/s"
-    );
+    assert!(fastest < 5.0, "a node reached {fastest} m/s");
 }
