@@ -94,7 +94,8 @@ const FREEZE_ROUNDS: usize = 16;
 /// weight 1e-6 took 1e6 times the correction and the solve diverged to 1e15 m/s within a tick.
 /// Between free nodes whose masses are in a ratio r the most is about 1 at r = 4, 2.4 at r = 25
 /// and 6.9 at r = 256 (an edge pair's light node; 8 is reached near r = 350): the bound leaves
-/// such contacts as they were up to a ratio of 256.
+/// such contacts as they were up to a ratio of 256. A contact the bound relaxes may also close as
+/// fast as its held nodes close it (see where it is prepared in [`respond_to_body_contacts`]).
 const MAX_AMPLIFICATION: f64 = 8.0;
 /// Fraction of the time of impact a colliding node is allowed to travel.
 const STOP_SHORT: f64 = 0.9;
@@ -1983,7 +1984,8 @@ fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
 /// linear momentum of the pair does not change and the forces on the two bodies are equal and
 /// opposite. Solved by sweeps over the contacts in a fixed order with accumulated impulses (normal
 /// ≥ 0, tangential within μ times the normal; μ = √(μ_a μ_b) from the two bodies' `friction`). A
-/// vertex may close the gap it had at the start of the tick down to half the skin and no more; end
+/// vertex may close the gap it had at the start of the tick down to half the skin and no more (or
+/// as fast as the nodes a tool holds close it, for a contact [`MAX_AMPLIFICATION`] relaxes); end
 /// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
 /// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
 /// with its displacement's velocity. An edge whose nearest side changed keeps a held contact with
