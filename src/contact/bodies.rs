@@ -3236,8 +3236,10 @@ impl CandidateCache {
                     ),
                     bvhs,
                     // A vertex's (edge's) box grown by the skin and its body's margin, against
-                    // triangle boxes grown by theirs.
-                    CONTACT_SKIN + LIST_MARGIN_PER_SLACK * self.slack[i],
+                    // triangle boxes grown by theirs. (The skin with the margin of the cheap
+                    // tests, which let an edge through to be counted up to that far: listed with
+                    // no slack, a side 1e-6 of the skin beyond it went uncounted.)
+                    CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN) + LIST_MARGIN_PER_SLACK * self.slack[i],
                     (near_triangles, found),
                     next,
                     &mut self.ranges[pair],
