@@ -1081,6 +1081,16 @@ impl World {
             match solver {
                 BodySolver::Symplectic(_) => {}
                 BodySolver::Multirate(m) => {
+                    // Last tick's contact forces on the sub-stepped nodes, felt by their substeps
+                    // and taken back after them (the response's impulses follow).
+                    let version = body.topology_version;
+                    let carried = || {
+                        self.body_contact
+                            .as_ref()
+                            .into_iter()
+                            .flat_map(move |scratch| scratch.carried_on(b, version))
+                    };
+                    m.carry_contact_forces(body, carried());
                     counters.obstacle_contacts += m.integrate(
                         body,
                         dt,
@@ -1088,7 +1098,8 @@ impl World {
                         &self.obstacles,
                         &mut self.obstacle_reactions,
                         fused,
-                    )
+                    );
+                    m.take_back_contact_forces(body, carried(), dt);
                 }
                 BodySolver::Implicit(i) => i.integrate(body, dt),
             }
@@ -1157,11 +1168,17 @@ impl World {
         if systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
+            let solvers = &self.solvers;
+            let sub_stepped = |body: usize, node: usize| match solvers.get(body) {
+                Some(BodySolver::Multirate(m)) => m.carries_contact_forces_to(node),
+                _ => false,
+            };
             let response = respond_to_body_contacts(
                 &mut self.bodies,
                 &self.origin,
                 (&self.obstacles, &mut self.obstacle_reactions),
                 scratch,
+                sub_stepped,
                 dt,
             );
             counters.bodies = resolve_body_collisions(&mut self.bodies, &self.origin, scratch, dt);

@@ -243,6 +243,8 @@ struct SolverNode {
     inverse_mass: f64,
     /// Whether a contact of the node took a normal impulse (it ends with its displacement's velocity).
     pushed: bool,
+    /// The contacts' force on the node over the tick (N, world), once solved.
+    force: Vec3,
     /// The solver's update (see [`solve`]) that last changed the node (0: none yet).
     changed: u32,
 }
@@ -328,6 +330,7 @@ impl SolverNodes {
             velocity: s.velocity_in_world[r.node],
             inverse_mass,
             pushed: false,
+            force: Vec3::zeros(),
             changed: 0,
         });
         Some(slot)
@@ -415,6 +418,10 @@ pub struct BodyContactScratch {
     /// Last tick's ground rows that pressed, by node and obstacle (sorted), with their accumulated
     /// impulses: the next tick's rows start from them (see [`ground_rows`]).
     ground_warm: Room<(NodeRef, u32, f64)>,
+    /// The contact forces this tick's response put on nodes that are sub-stepped (N, world; one
+    /// entry a node, in node order), carried into their next tick's substeps
+    /// ([`BodyContactScratch::carried_on`]).
+    carried: Room<(NodeRef, Vec3)>,
 }
 
 /// A vertex–face or edge–edge pair the collision net answered a collision of (or whose contact,
@@ -511,6 +518,7 @@ impl BodyContactScratch {
         let count = bvhs.len();
         let solver_nodes = SolverNodes::new(bodies, spare, 3 * spare_triangles + 3);
         let most_rows = solver_nodes.ground.capacity();
+        let most_nodes = solver_nodes.nodes.capacity();
         // Room for each body's most nodes (at most 3 per triangle, as the hierarchy's own).
         let answered: Vec<Room<u32>> = bodies
             .iter()
@@ -554,6 +562,7 @@ impl BodyContactScratch {
             remembered_taken: Room::with_capacity(CONTACT_CAPACITY),
             remembered_dropped: 0,
             ground_warm: Room::with_capacity(most_rows),
+            carried: Room::with_capacity(most_nodes),
         }
     }
 }
@@ -565,6 +574,27 @@ impl BodyContactScratch {
     /// the whole work of every tick).
     pub fn set_candidate_cache(&mut self, keep: bool) {
         self.cache.keep = keep;
+    }
+
+    /// The contact forces last tick's response put on body `k`'s sub-stepped nodes (node, force in
+    /// N), in node order; none where the body's topology changed since (`version`: its topology
+    /// version now).
+    ///
+    /// A sub-stepped node takes a contact's impulse at the end of the tick, after substeps that
+    /// did not feel the contact: under a load it ends them with a velocity into the contact that its
+    /// displacement does not have (by about half its acceleration's change over the tick), which
+    /// the response sets back to the displacement's, and that reset, one node's only, does not
+    /// keep the pair's momentum (8.5e-2 N s of 1.9 in a collision of two multi-rate bodies). Its
+    /// substeps take last tick's contact force instead (`Multirate::carry_contact_forces`), taken
+    /// back as an impulse after them, and the response's impulses follow: at rest the node ends
+    /// its substeps with the velocity of its displacement, and the reset has little to change
+    /// (3.4e-2 N s in that collision; see `Multirate::carries_contact_forces_to` for which nodes).
+    pub fn carried_on(&self, k: usize, version: u64) -> impl Iterator<Item = (usize, Vec3)> + '_ {
+        let unchanged = self.warm_versions.get(k) == Some(&version);
+        let list: &[(NodeRef, Vec3)] = if unchanged { &self.carried } else { &[] };
+        let from = list.partition_point(|(r, _)| r.body < k);
+        let to = list.partition_point(|(r, _)| r.body <= k);
+        list[from..to].iter().map(|&(r, force)| (r.node, force))
     }
 
     /// Forgets last tick's contacts and the remembered pairs (no two bodies near).
@@ -1999,9 +2029,12 @@ pub fn respond_to_body_contacts(
     group: &[usize],
     (obstacles, reactions): (&[Obstacle], &mut [Vec3]),
     scratch: &mut BodyContactScratch,
+    sub_stepped: impl Fn(usize, usize) -> bool,
     dt: f64,
 ) -> BodyContactCounters {
     let mut counters = BodyContactCounters::default();
+    // (Last tick's were carried into this tick's substeps.)
+    scratch.carried.clear();
     scratch.forces.clear();
     scratch.forces.resize(bodies.len(), Vec3::zeros());
     scratch.work.clear();
@@ -2581,7 +2614,9 @@ pub fn respond_to_body_contacts(
     for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
         let impulse = c.normal * c.normal_impulse + c.tangent_impulse;
         for i in 0..nodes.count {
-            scratch.forces[nodes.refs[i].body] += impulse * nodes.weights_per_second[i];
+            let force = impulse * nodes.weights_per_second[i];
+            scratch.forces[nodes.refs[i].body] += force;
+            solver_nodes.nodes[nodes.slots[i] as usize].force += force;
         }
         scratch.work[c.a[0].body] += nodes.work[0];
         scratch.work[c.b[0].body] += nodes.work[1];
@@ -2657,6 +2692,17 @@ pub fn respond_to_body_contacts(
     scratch
         .ground_warm
         .sort_unstable_by_key(|&(r, obstacle, _)| (r, obstacle));
+    // The sub-stepped nodes' contact forces, for their next substeps (see `carried_on`).
+    for n in solver_nodes.nodes.iter() {
+        if n.inverse_mass != 0.0
+            && n.force != Vec3::zeros()
+            && sub_stepped(n.r.body, n.r.node)
+            && scratch.carried.len() < scratch.carried.capacity()
+        {
+            scratch.carried.push((n.r, n.force));
+        }
+    }
+    scratch.carried.sort_unstable_by_key(|&(r, _)| r);
     solver_nodes.write_back(bodies);
     // This tick's impulses for the next tick's warm start, in the contacts' order.
     scratch.warm.clear();

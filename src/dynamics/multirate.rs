@@ -208,6 +208,57 @@ impl Multirate {
         }
     }
 
+    /// Whether node `i` takes last tick's contact forces into its substeps: a fast node, unless the
+    /// rigid component is sub-stepped with the nodes. (There the rigid component feels the carried
+    /// force through the links within the step, and a 5 kg organ laid on a 1.3 kg one settled
+    /// over seconds instead of ringing down: 7.2e-5 J at 4.5 s against 4.0e-6 without it.)
+    pub fn carries_contact_forces_to(&self, i: usize) -> bool {
+        !self.rigid_substepped && self.fast.binary_search(&(i as u32)).is_ok()
+    }
+
+    /// [`Self::carries_contact_forces_to`], for a node no tool holds, of non-zero inverse mass.
+    fn sub_steps(&self, body: &Body, i: usize) -> bool {
+        let s = &body.surface;
+        self.carries_contact_forces_to(i)
+            && s.tool_contact.get(i).is_some_and(|c| c.tool == NO_TOOL)
+            && s.inverse_mass[i] != 0.0
+    }
+
+    /// Adds last tick's contact forces on the sub-stepped nodes of `body` (node, force in N: see
+    /// `BodyContactScratch::carried_on`) to their outside forces for this step's substeps.
+    pub fn carry_contact_forces(
+        &mut self,
+        body: &Body,
+        carried: impl Iterator<Item = (usize, Vec3)>,
+    ) {
+        for (i, force) in carried {
+            if i < body.surface.mass.len() && self.sub_steps(body, i) {
+                self.add_external_force(i, &force);
+            }
+        }
+    }
+
+    /// After the step, takes back the forces [`Self::carry_contact_forces`] added (`carried`, the
+    /// same list): each node's velocity and end position change by the impulse's opposite (the
+    /// force over the step), so that over the tick the node took the contact's impulse once, from
+    /// this tick's response; its outside force is cleared.
+    pub fn take_back_contact_forces(
+        &mut self,
+        body: &mut Body,
+        carried: impl Iterator<Item = (usize, Vec3)>,
+        dt: f64,
+    ) {
+        for (i, force) in carried {
+            if i < body.surface.mass.len() && self.sub_steps(body, i) {
+                self.clear_external_force(i);
+                let s = &mut body.surface;
+                let dv = force * (dt * s.inverse_mass[i]);
+                s.velocity_in_world[i] -= dv;
+                s.next_position_in_world[i] -= dv * dt;
+            }
+        }
+    }
+
     /// Clears the outside force on `node`.
     pub fn clear_external_force(&mut self, node: usize) {
         if let Some(f) = self.external.get_mut(node) {
