@@ -285,17 +285,35 @@ fn bench_bodies_quick_writes_consistent_figures() {
     );
     let r = json(&dir.join("bodies.json"));
     let layouts = r["layouts"].as_array().expect("layouts");
-    // `--quick`: two 162-node organs apart, touching and stacked.
-    assert_eq!(layouts.len(), 3);
-    for (row, layout) in layouts.iter().zip(["apart", "touching", "stacked"]) {
+    // `--quick`: two 162-node organs of the bench's parameters apart, touching and stacked, then
+    // two of the default parameters apart and stacked.
+    assert_eq!(layouts.len(), 5);
+    let expected = [
+        ("bench", "apart"),
+        ("bench", "touching"),
+        ("bench", "stacked"),
+        ("default", "apart"),
+        ("default", "stacked"),
+    ];
+    for (row, (parameters, layout)) in layouts.iter().zip(expected) {
+        assert_eq!(row["parameters"], parameters);
         assert_eq!(row["layout"], layout);
         assert_eq!(finite(&row["nodes_per_body"]), 162.0);
         let (tick, stage) = (finite(&row["tick_us"]), finite(&row["body_contact_us"]));
         assert!(tick > 0.0 && stage >= 0.0 && stage < tick, "{row}");
     }
     // Organs apart touch nothing; stacked, each rests on the other.
-    assert_eq!(finite(&layouts[0]["contacts_per_tick"]), 0.0);
-    assert!(finite(&layouts[2]["contacts_per_tick"]) > 10.0);
+    for (apart, stacked) in [(0, 2), (3, 4)] {
+        assert_eq!(finite(&layouts[apart]["contacts_per_tick"]), 0.0);
+        assert!(finite(&layouts[stacked]["contacts_per_tick"]) > 10.0);
+        // Each ratio is to the apart row of its own parameters.
+        let ratio = finite(&layouts[stacked]["ratio_to_apart"]);
+        let expected = finite(&layouts[stacked]["tick_us"]) / finite(&layouts[apart]["tick_us"]);
+        assert!(
+            (ratio - expected).abs() <= 1e-9 * expected,
+            "{ratio} {expected}"
+        );
+    }
     assert_eq!(finite(&r["laparoscopy"]["samples"]), 5500.0);
     // The ball's landing: 200 ticks, held by the response's contacts (the net answered 7 765
     // collisions there before the response took over the pairs it answers).

@@ -902,8 +902,11 @@ fn scene_ticks(text: &str, name: &str, window: std::ops::Range<u64>) -> Result<V
 /// from each other, `touching` side by side in a row (0.5 mm apart, within the contact skin),
 /// `stacked` in stacks of two (each organ on the table or resting on the one below; the stacks in
 /// a row, 4 cm apart), or `tower`, all one on another (three or more of these soft, rounded organs
-/// topple: the upper ones fall off and slide, and the case measures a heap settling).
-fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
+/// topple: the upper ones fall off and slide, and the case measures a heap settling). With `stiff`
+/// the bench's organs (stiffer springs and links, lighter nodes: every node and the rigid component
+/// sub-stepped by the multi-rate integrator, four substeps a tick), else the scene format's
+/// defaults (no node sub-stepped at 162 nodes).
+fn bodies_scene(count: usize, subdivisions: u32, layout: &str, stiff: bool) -> String {
     let mut text = String::from(
         "[world]\nair_viscosity = 1.0\n\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
     );
@@ -915,9 +918,14 @@ fn bodies_scene(count: usize, subdivisions: u32, layout: &str) -> String {
             _ => (0.0, 0.0155 + k as f64 * 0.0305),
         };
         text += &format!(
-            "\n[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = {subdivisions} }} }}\nposition = [{x}, 0.0, {z}]\nsurface_mass = {}\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
-            0.1 * 4f64.powi(subdivisions as i32 - 2)
+            "\n[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = {subdivisions} }} }}\nposition = [{x}, 0.0, {z}]\n"
         );
+        if stiff {
+            text += &format!(
+                "surface_mass = {}\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
+                0.1 * 4f64.powi(subdivisions as i32 - 2)
+            );
+        }
     }
     text
 }
@@ -974,8 +982,13 @@ fn bodies(args: GraspArgs) -> Result<()> {
         for &count in counts {
             // Two organs in a tower are a stack of two.
             for layout in layouts.into_iter().filter(|&l| l != "tower" || count > 2) {
-                cases.push((level, count, layout));
+                cases.push((level, count, layout, true));
             }
+        }
+        // Two organs of the default parameters, apart and stacked: the upper one presses the
+        // lower one flat, and their contact is as wide as the organs.
+        for layout in ["apart", "stacked"] {
+            cases.push((level, 2, layout, false));
         }
     }
     let mut progress = Progress::new("bodies", cases.len() * reps + (2 + levels.len()) * reps);
@@ -992,9 +1005,12 @@ fn bodies(args: GraspArgs) -> Result<()> {
          ones fall and slide, so this measures a heap settling, bodies in moving contact); 1.5 s to \
          settle, then 1 s measured with `World::step_profiled`, {reps} run(s) each (the cases in turn \
          in each round of runs), the best kept (the least mean tick). *body contact*: the body–body stage (response and collision net) per \
-         tick; *tick*: the whole tick.\n\n\
-         | nodes per organ | organs | layout | body contact (µs) | tick (µs) | contacts per tick | ratio to apart |\n\
-         | --- | --- | --- | --- | --- | --- | --- |\n",
+         tick; *tick*: the whole tick. *Parameters*: `bench`, stiffer springs and links on light nodes \
+         (every node and the rigid component sub-stepped, four substeps a tick: a costly tick of the \
+         organs' own); `default`, the scene format's defaults (a cheap tick of their own, and the \
+         lower organ pressed flat by the upper one).\n\n\
+         | nodes per organ | organs | parameters | layout | body contact (µs) | tick (µs) | contacts per tick | ratio to apart |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |\n",
         today(),
         machine()
     );
@@ -1002,9 +1018,13 @@ fn bodies(args: GraspArgs) -> Result<()> {
     let mut apart_tick = 0.0;
     let scenes = cases
         .iter()
-        .map(|&(level, count, layout)| {
-            palpa::scene::parse_scene(&bodies_scene(count, level, layout), layout, Path::new("."))
-                .map_err(|e| anyhow::anyhow!("{e}"))
+        .map(|&(level, count, layout, stiff)| {
+            palpa::scene::parse_scene(
+                &bodies_scene(count, level, layout, stiff),
+                layout,
+                Path::new("."),
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))
         })
         .collect::<Result<Vec<_>>>()?;
     // The best of the runs of each case (the least mean tick, with its stage and contacts), the
@@ -1012,7 +1032,7 @@ fn bodies(args: GraspArgs) -> Result<()> {
     // run of several cases, not on every run of one.
     let mut best = vec![(0usize, f64::INFINITY, 0.0, 0.0); cases.len()];
     for _ in 0..reps {
-        for ((&(_, _, layout), scene), best) in cases.iter().zip(&scenes).zip(best.iter_mut()) {
+        for ((&(_, _, layout, _), scene), best) in cases.iter().zip(&scenes).zip(best.iter_mut()) {
             let mut world = World::from_scene(scene);
             let nodes = world.bodies[0].node_count();
             for _ in 0..1500 {
@@ -1033,16 +1053,17 @@ fn bodies(args: GraspArgs) -> Result<()> {
             progress.step(layout);
         }
     }
-    for (&(_, count, layout), &(nodes, tick, stage, contacts)) in cases.iter().zip(&best) {
+    for (&(_, count, layout, stiff), &(nodes, tick, stage, contacts)) in cases.iter().zip(&best) {
         if layout == "apart" {
             apart_tick = tick;
         }
+        let parameters = if stiff { "bench" } else { "default" };
         md += &format!(
-            "| {nodes} | {count} | {layout} | {stage:.1} | {tick:.1} | {contacts:.0} | {:.2} |\n",
+            "| {nodes} | {count} | {parameters} | {layout} | {stage:.1} | {tick:.1} | {contacts:.0} | {:.2} |\n",
             tick / apart_tick
         );
         rows.push(json!({
-            "nodes_per_body": nodes, "bodies": count, "layout": layout,
+            "nodes_per_body": nodes, "bodies": count, "parameters": parameters, "layout": layout,
             "body_contact_us": stage, "tick_us": tick, "contacts_per_tick": contacts,
             "ratio_to_apart": tick / apart_tick,
         }));
