@@ -286,12 +286,14 @@ fn bench_bodies_quick_writes_consistent_figures() {
     let r = json(&dir.join("bodies.json"));
     let layouts = r["layouts"].as_array().expect("layouts");
     // `--quick`: two 162-node organs of the bench's parameters apart, touching and stacked, then
-    // two of the default parameters apart and stacked.
-    assert_eq!(layouts.len(), 5);
+    // two of the uterus's and two of the default parameters apart and stacked.
+    assert_eq!(layouts.len(), 7);
     let expected = [
         ("bench", "apart"),
         ("bench", "touching"),
         ("bench", "stacked"),
+        ("uterus", "apart"),
+        ("uterus", "stacked"),
         ("default", "apart"),
         ("default", "stacked"),
     ];
@@ -303,7 +305,7 @@ fn bench_bodies_quick_writes_consistent_figures() {
         assert!(tick > 0.0 && stage >= 0.0 && stage < tick, "{row}");
     }
     // Organs apart touch nothing; stacked, each rests on the other.
-    for (apart, stacked) in [(0, 2), (3, 4)] {
+    for (apart, stacked) in [(0, 2), (3, 4), (5, 6)] {
         assert_eq!(finite(&layouts[apart]["contacts_per_tick"]), 0.0);
         assert!(finite(&layouts[stacked]["contacts_per_tick"]) > 10.0);
         // Each ratio is to the apart row of its own parameters.

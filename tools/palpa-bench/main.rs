@@ -902,11 +902,14 @@ fn scene_ticks(text: &str, name: &str, window: std::ops::Range<u64>) -> Result<V
 /// from each other, `touching` side by side in a row (0.5 mm apart, within the contact skin),
 /// `stacked` in stacks of two (each organ on the table or resting on the one below; the stacks in
 /// a row, 4 cm apart), or `tower`, all one on another (three or more of these soft, rounded organs
-/// topple: the upper ones fall off and slide, and the case measures a heap settling). With `stiff`
-/// the bench's organs (stiffer springs and links, lighter nodes: every node and the rigid component
-/// sub-stepped by the multi-rate integrator, four substeps a tick), else the scene format's
-/// defaults (no node sub-stepped at 162 nodes).
-fn bodies_scene(count: usize, subdivisions: u32, layout: &str, stiff: bool) -> String {
+/// topple: the upper ones fall off and slide, and the case measures a heap settling). Of the
+/// `parameters`: `bench`, the bench's organs (stiffer springs and links, lighter nodes: every node
+/// and the rigid component sub-stepped by the multi-rate integrator, four substeps a tick);
+/// `uterus`, those of `scenes/laparoscopy.toml`'s uterus (no node sub-stepped; an organ that keeps
+/// its shape); `default`, the scene format's defaults (no node sub-stepped at 162 nodes; a heavy
+/// rigid component on soft links: an organ alone sags to half its height, and one under another
+/// is pressed flat onto the table).
+fn bodies_scene(count: usize, subdivisions: u32, layout: &str, parameters: &str) -> String {
     let mut text = String::from(
         "[world]\nair_viscosity = 1.0\n\n[[obstacle]]\nname = \"table\"\nplane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }\nfriction = 0.5\nstatic_friction = 0.7\n",
     );
@@ -920,11 +923,22 @@ fn bodies_scene(count: usize, subdivisions: u32, layout: &str, stiff: bool) -> S
         text += &format!(
             "\n[[body]]\nname = \"organ{k}\"\nmesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = {subdivisions} }} }}\nposition = [{x}, 0.0, {z}]\n"
         );
-        if stiff {
-            text += &format!(
-                "surface_mass = {}\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
-                0.1 * 4f64.powi(subdivisions as i32 - 2)
-            );
+        // (Masses raised with the node count, so that each node weighs the same.)
+        let scale = 4f64.powi(subdivisions as i32 - 2);
+        match parameters {
+            "bench" => {
+                text += &format!(
+                    "surface_mass = {}\nrigid_mass = 0.2\nsurface_stiffness = 100.0\nsurface_damping = 0.05\nlink_stiffness = 200.0\nlink_damping = 0.3\nfriction = 0.4\n",
+                    0.1 * scale
+                )
+            }
+            "uterus" => {
+                text += &format!(
+                    "surface_mass = {}\nrigid_mass = 0.03\nsurface_stiffness = 12.0\nsurface_damping = 0.02\nlink_stiffness = 50.0\nlink_damping = 0.05\nfriction = 0.3\n",
+                    0.06 * scale
+                )
+            }
+            _ => {}
         }
     }
     text
@@ -982,13 +996,15 @@ fn bodies(args: GraspArgs) -> Result<()> {
         for &count in counts {
             // Two organs in a tower are a stack of two.
             for layout in layouts.into_iter().filter(|&l| l != "tower" || count > 2) {
-                cases.push((level, count, layout, true));
+                cases.push((level, count, layout, "bench"));
             }
         }
-        // Two organs of the default parameters, apart and stacked: the upper one presses the
-        // lower one flat, and their contact is as wide as the organs.
-        for layout in ["apart", "stacked"] {
-            cases.push((level, 2, layout, false));
+        // Two organs whose own tick is cheap (no node sub-stepped), apart and stacked: the
+        // uterus's parameters, and the defaults (the upper one pressing the lower one flat).
+        for parameters in ["uterus", "default"] {
+            for layout in ["apart", "stacked"] {
+                cases.push((level, 2, layout, parameters));
+            }
         }
     }
     let mut progress = Progress::new("bodies", cases.len() * reps + (2 + levels.len()) * reps);
@@ -1007,8 +1023,10 @@ fn bodies(args: GraspArgs) -> Result<()> {
          in each round of runs), the best kept (the least mean tick). *body contact*: the body–body stage (response and collision net) per \
          tick; *tick*: the whole tick. *Parameters*: `bench`, stiffer springs and links on light nodes \
          (every node and the rigid component sub-stepped, four substeps a tick: a costly tick of the \
-         organs' own); `default`, the scene format's defaults (a cheap tick of their own, and the \
-         lower organ pressed flat by the upper one).\n\n\
+         organs' own); `uterus`, those of the laparoscopy scene's uterus (no node sub-stepped: a cheap \
+         tick of their own; an organ that keeps its shape); `default`, the scene format's defaults (a \
+         cheap tick too; a heavy rigid component on soft links, so that the lower organ is pressed \
+         flat onto the table by the upper one, and their contact spans the organs).\n\n\
          | nodes per organ | organs | parameters | layout | body contact (µs) | tick (µs) | contacts per tick | ratio to apart |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- |\n",
         today(),
@@ -1018,9 +1036,9 @@ fn bodies(args: GraspArgs) -> Result<()> {
     let mut apart_tick = 0.0;
     let scenes = cases
         .iter()
-        .map(|&(level, count, layout, stiff)| {
+        .map(|&(level, count, layout, parameters)| {
             palpa::scene::parse_scene(
-                &bodies_scene(count, level, layout, stiff),
+                &bodies_scene(count, level, layout, parameters),
                 layout,
                 Path::new("."),
             )
@@ -1053,11 +1071,12 @@ fn bodies(args: GraspArgs) -> Result<()> {
             progress.step(layout);
         }
     }
-    for (&(_, count, layout, stiff), &(nodes, tick, stage, contacts)) in cases.iter().zip(&best) {
+    for (&(_, count, layout, parameters), &(nodes, tick, stage, contacts)) in
+        cases.iter().zip(&best)
+    {
         if layout == "apart" {
             apart_tick = tick;
         }
-        let parameters = if stiff { "bench" } else { "default" };
         md += &format!(
             "| {nodes} | {count} | {parameters} | {layout} | {stage:.1} | {tick:.1} | {contacts:.0} | {:.2} |\n",
             tick / apart_tick
