@@ -118,6 +118,10 @@ pub struct Multirate {
     bound_damping: Vec<f64>,
     /// Nodes that touched an obstacle during the substeps of this step.
     touched: Vec<bool>,
+    /// Per node not sub-stepped, the impulse (N s) its springs to sub-stepped nodes owe it over the
+    /// step: what those springs gave the sub-stepped ends, negated, less what it took from them
+    /// at the start-of-step state (see [`Multirate::integrate`]).
+    owed: Vec<Vec3>,
     /// Forces from outside the body held over the step (attachments), per node (N, world): the
     /// substeps recompute the nodes' own forces, and add these.
     external: Vec<Vec3>,
@@ -184,6 +188,7 @@ impl Multirate {
             bound_stiffness: Vec::with_capacity(n),
             bound_damping: Vec::with_capacity(n),
             touched: Vec::with_capacity(n),
+            owed: Vec::with_capacity(n),
             external: Vec::with_capacity(n),
             carried_force: Vec3::zeros(),
             carried_torque: Vec3::zeros(),
@@ -839,6 +844,7 @@ impl Multirate {
     /// held before does not matter: only the sizes change.
     fn size_scratch(&mut self, n: usize) {
         self.touched.resize(n, false);
+        self.owed.resize(n, Vec3::zeros());
         let deep = self.deep.len();
         self.x_base
             .resize(if deep > 0 { n } else { 0 }, Vec3::zeros());
@@ -874,6 +880,32 @@ impl Multirate {
             return self.integrate_with_rigid(body, dt, gravity, obstacles, reactions);
         }
         let s = &mut body.surface;
+        // A spring between a sub-stepped node and one that is not gives the first, over its
+        // substeps, forces from the second's interpolated trajectory, and the second the force of
+        // the start-of-step state for the whole step: not equal and opposite impulses once the
+        // spring changes over the step (a lone deforming body lost momentum so). The second is
+        // owed the difference, given it after the substeps. Here, what it takes at the start (the
+        // force stage's, to rounding), from the states before the step.
+        let e = &body.edges;
+        if !slow_nodes_integrated {
+            for (k, &i) in self.fast.iter().enumerate() {
+                let i = i as usize;
+                if s.tool_contact[i].tool != NO_TOOL {
+                    continue;
+                }
+                let (x, v) = (s.position_in_world[i], s.velocity_in_world[i]);
+                for at in self.start[k] as usize..self.start[k + 1] as usize {
+                    let j = self.neighbour[at] as usize;
+                    if self.local[j] != u32::MAX {
+                        continue;
+                    }
+                    let (xj, vj) = (s.position_in_world[j], s.velocity_in_world[j]);
+                    if let Some(pull) = spring_pull(e, self.edge[at] as usize, &x, &v, &xj, &vj) {
+                        self.owed[j] += pull * dt;
+                    }
+                }
+            }
+        }
         let n = if slow_nodes_integrated {
             0
         } else {
@@ -926,7 +958,6 @@ impl Multirate {
             }
         }
         let h = dt / self.substeps as f64;
-        let e = &body.edges;
         // Each fast node steps at its own level: node i every `stride = 2^(L − level[i])` substeps,
         // with a step of `stride · h` (one stiff node does not drag every fast node down to its
         // step). Its fast neighbours enter with their latest states.
@@ -963,6 +994,9 @@ impl Multirate {
                     };
                     if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
                         force += pull;
+                        if self.local[j] == u32::MAX && !slow_nodes_integrated {
+                            self.owed[j] -= pull * (h * stride as f64);
+                        }
                     }
                 }
                 self.f[k] = force;
@@ -985,6 +1019,25 @@ impl Multirate {
             }
             s.velocity_in_world[i] = self.v[k];
             s.next_position_in_world[i] = self.x[k];
+        }
+        // What the nodes not sub-stepped are owed (each once: its debt is cleared as it is paid),
+        // as a change of their end velocity over the step.
+        if !slow_nodes_integrated {
+            for k in 0..self.fast.len() {
+                for at in self.start[k] as usize..self.start[k + 1] as usize {
+                    let j = self.neighbour[at] as usize;
+                    if self.local[j] != u32::MAX {
+                        continue;
+                    }
+                    let owed = std::mem::replace(&mut self.owed[j], Vec3::zeros());
+                    if owed == Vec3::zeros() || s.tool_contact[j].tool != NO_TOOL {
+                        continue;
+                    }
+                    let change = owed * s.inverse_mass[j];
+                    s.velocity_in_world[j] += change;
+                    s.next_position_in_world[j] += change * dt;
+                }
+            }
         }
         0
     }
