@@ -2019,7 +2019,8 @@ fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
 /// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
 /// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
 /// with its displacement's velocity (but a node for which `sub_stepped` is true: its substeps took
-/// last tick's contact forces, which it is given back for its next substeps). An edge whose nearest side changed keeps a held contact with
+/// last tick's contact forces, which it is given back for its next substeps, and it keeps its
+/// velocity). An edge whose nearest side changed keeps a held contact with
 /// the side it pressed last tick, its normal impulse capped at [`HOLD_SHARE`] of last tick's. A
 /// node on an obstacle (within the skin of it) may not be
 /// pushed into it: the obstacle is a one-sided row of the same solve ([`GroundRow`]), and its
