@@ -1112,6 +1112,29 @@ impl Multirate {
             }
             add_spring_forces(e, &self.x, &self.v, &mut self.f, self.simd);
             if deep {
+                // A spring from a deep node to a coarser one: both take its force now, the coarser
+                // for its whole (longer) step; the deep node takes it again at each of its later
+                // steps, from the other's interpolated path, which the coarser never sees. The
+                // coarser node is owed the difference (see `step_deep`), paid after the substeps.
+                for (k, &d) in self.deep.iter().enumerate() {
+                    let d = d as usize;
+                    if s.tool_contact[d].tool != NO_TOOL {
+                        continue;
+                    }
+                    let own = h * (1u32 << (finest - self.level[d])) as f64;
+                    for at in self.start[k] as usize..self.start[k + 1] as usize {
+                        let j = self.neighbour[at] as usize;
+                        if self.level[j] >= self.level[d] {
+                            continue;
+                        }
+                        let theirs = h * (1u32 << (finest - self.level[j])) as f64;
+                        let (x, v, xj, vj) = (self.x[d], self.v[d], self.x[j], self.v[j]);
+                        if let Some(pull) = spring_pull(e, self.edge[at] as usize, &x, &v, &xj, &vj)
+                        {
+                            self.owed[j] += pull * (theirs - own);
+                        }
+                    }
+                }
                 self.x_base[..n].copy_from_slice(&self.x[..n]);
             }
             for i in 0..n {
@@ -1157,6 +1180,20 @@ impl Multirate {
                     self.homologue_end[i] =
                         rigid.position_in_world + world_from_body * s.homologue_in_body[i];
                 }
+            }
+        }
+        // What the coarser neighbours of the deep nodes are owed, as a change of their end
+        // velocity over the step (each once: its debt is cleared as it is paid).
+        for k in 0..self.deep.len() {
+            for at in self.start[k] as usize..self.start[k + 1] as usize {
+                let j = self.neighbour[at] as usize;
+                let owed = std::mem::replace(&mut self.owed[j], Vec3::zeros());
+                if owed == Vec3::zeros() || s.tool_contact[j].tool != NO_TOOL {
+                    continue;
+                }
+                let change = owed * s.inverse_mass[j];
+                self.v[j] += change;
+                self.x[j] += change * dt;
             }
         }
         for i in 0..n {
@@ -1235,6 +1272,17 @@ impl Multirate {
                 let vj = self.v[j];
                 if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
                     force += pull;
+                    // Owed to a coarser neighbour (see `integrate_with_rigid`): stepping now, it
+                    // takes this force for its whole step, this node for its own; else it takes
+                    // none of this one.
+                    if self.level[j] < self.level[i] {
+                        let own = h * (1u32 << (finest - self.level[i])) as f64;
+                        self.owed[j] += if self.level[j] >= lowest {
+                            pull * (h * (1u32 << (finest - self.level[j])) as f64 - own)
+                        } else {
+                            -pull * own
+                        };
+                    }
                 }
             }
             self.deep_force[k] = force;
