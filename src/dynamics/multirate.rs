@@ -118,9 +118,10 @@ pub struct Multirate {
     bound_damping: Vec<f64>,
     /// Nodes that touched an obstacle during the substeps of this step.
     touched: Vec<bool>,
-    /// Per node not sub-stepped, the impulse (N s) its springs to sub-stepped nodes owe it over the
-    /// step: what those springs gave the sub-stepped ends, negated, less what it took from them
-    /// at the start-of-step state (see [`Multirate::integrate`]).
+    /// Per node, the impulse (N s) its springs to nodes stepped finer than it owe it over the
+    /// step: what those springs gave the finer ends, negated, less what it took from them at its
+    /// own steps (a node not sub-stepped, see [`Multirate::integrate`]; a node coarser than a deep
+    /// one, see `integrate_with_rigid`). Zero between steps: each debt is cleared as it is paid.
     owed: Vec<Vec3>,
     /// Forces from outside the body held over the step (attachments), per node (N, world): the
     /// substeps recompute the nodes' own forces, and add these.
