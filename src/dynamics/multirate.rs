@@ -1030,13 +1030,12 @@ impl Multirate {
                     if self.local[j] != u32::MAX {
                         continue;
                     }
-                    let owed = std::mem::replace(&mut self.owed[j], Vec3::zeros());
-                    if owed == Vec3::zeros() || s.tool_contact[j].tool != NO_TOOL {
-                        continue;
-                    }
-                    let change = owed * s.inverse_mass[j];
-                    s.velocity_in_world[j] += change;
-                    s.next_position_in_world[j] += change * dt;
+                    let held = s.tool_contact[j].tool != NO_TOOL;
+                    let end = (
+                        &mut s.velocity_in_world[j],
+                        &mut s.next_position_in_world[j],
+                    );
+                    pay_owed(&mut self.owed[j], held, s.inverse_mass[j], end, dt);
                 }
             }
         }
@@ -1188,13 +1187,9 @@ impl Multirate {
         for k in 0..self.deep.len() {
             for at in self.start[k] as usize..self.start[k + 1] as usize {
                 let j = self.neighbour[at] as usize;
-                let owed = std::mem::replace(&mut self.owed[j], Vec3::zeros());
-                if owed == Vec3::zeros() || s.tool_contact[j].tool != NO_TOOL {
-                    continue;
-                }
-                let change = owed * s.inverse_mass[j];
-                self.v[j] += change;
-                self.x[j] += change * dt;
+                let held = s.tool_contact[j].tool != NO_TOOL;
+                let end = (&mut self.v[j], &mut self.x[j]);
+                pay_owed(&mut self.owed[j], held, s.inverse_mass[j], end, dt);
             }
         }
         for i in 0..n {
@@ -1443,6 +1438,24 @@ mod avx {
         }
         4 * blocks
     }
+}
+
+/// Pays a node what its springs to finer-stepped nodes owe it (`owed`, N s, cleared), as a change of
+/// its end `velocity` and of its end `position` over the step; nothing to a node a tool holds.
+fn pay_owed(
+    owed: &mut Vec3,
+    held: bool,
+    inverse_mass: f64,
+    (velocity, position): (&mut Vec3, &mut Vec3),
+    dt: f64,
+) {
+    let owed = std::mem::replace(owed, Vec3::zeros());
+    if owed == Vec3::zeros() || held {
+        return;
+    }
+    let change = owed * inverse_mass;
+    *velocity += change;
+    *position += change * dt;
 }
 
 fn spring_pull(
