@@ -140,6 +140,9 @@ pub struct World {
     pub obstacles: Vec<Obstacle>,
     /// Force each obstacle exerted on the bodies during the last step (N, world frame).
     pub obstacle_reactions: Vec<Vec3>,
+    /// Each obstacle's reach this step (`ObstacleShape::reach_in_world`), for the multi-rate
+    /// substeps: sized with the reactions, refreshed at every step (the obstacles are public).
+    obstacle_reach: Vec<Option<[Vec3; 2]>>,
     /// Rigid tools, in scene order.
     pub tools: Vec<Tool>,
     /// Number of steps taken; simulated time is `tick × dt`.
@@ -481,6 +484,7 @@ impl World {
             bodies: Vec::new(),
             obstacles: Vec::new(),
             obstacle_reactions: Vec::new(),
+            obstacle_reach: Vec::new(),
             tools: Vec::new(),
             tick: 0,
             counters: StepCounters::default(),
@@ -559,6 +563,7 @@ impl World {
             body.refresh_diagonals();
         }
         self.obstacle_reactions = vec![Vec3::zeros(); self.obstacles.len()];
+        self.obstacle_reach = vec![None; self.obstacles.len()];
         self.systems = Systems {
             gravity: self.params.gravity != Vec3::zeros(),
             air_viscosity: self.bodies.iter().any(|b| b.params.air_viscosity > 0.0),
@@ -997,6 +1002,9 @@ impl World {
         for reaction in &mut self.obstacle_reactions {
             *reaction = Vec3::zeros();
         }
+        for (reach, obstacle) in self.obstacle_reach.iter_mut().zip(&self.obstacles) {
+            *reach = obstacle.shape.reach_in_world();
+        }
         let systems = self.systems;
         if systems.tool_contact {
             self.update_grasps(&mut counters);
@@ -1095,7 +1103,7 @@ impl World {
                         body,
                         dt,
                         &gravity,
-                        &self.obstacles,
+                        (&self.obstacles, &self.obstacle_reach),
                         &mut self.obstacle_reactions,
                         fused,
                     );

@@ -22,7 +22,7 @@
 
 use crate::Vec3;
 use crate::body::Body;
-use crate::collision::obstacle::Obstacle;
+use crate::collision::obstacle::{Obstacle, beyond};
 use crate::contact::obstacle::{point_contact_plane, resolve_point};
 use crate::contact::tool::NO_TOOL;
 use crate::dynamics::stability::{
@@ -867,18 +867,20 @@ impl Multirate {
     ///
     /// When the rigid component is sub-stepped, contact with the `obstacles` is resolved in the
     /// substeps too (a contact projected once per step would store ½ k (v Δt)² in the stiff links it
-    /// compresses, far more than the motion it stops), the obstacles' forces added to `reactions`.
+    /// compresses, far more than the motion it stops), the obstacles' forces added to `reactions`;
+    /// `reach` holds each obstacle's `ObstacleShape::reach_in_world` for this step (a node ending
+    /// beyond it is not tested against that obstacle; an obstacle without an entry is tested).
     pub fn integrate(
         &mut self,
         body: &mut Body,
         dt: f64,
         gravity: &Vec3,
-        obstacles: &[Obstacle],
+        (obstacles, reach): (&[Obstacle], &[Option<[Vec3; 2]>]),
         reactions: &mut [Vec3],
         slow_nodes_integrated: bool,
     ) -> usize {
         if self.rigid_substepped {
-            return self.integrate_with_rigid(body, dt, gravity, obstacles, reactions);
+            return self.integrate_with_rigid(body, dt, gravity, (obstacles, reach), reactions);
         }
         let s = &mut body.surface;
         // A spring between a sub-stepped node and one that is not gives the first, over its
@@ -1050,7 +1052,7 @@ impl Multirate {
         body: &mut Body,
         dt: f64,
         gravity: &Vec3,
-        obstacles: &[Obstacle],
+        (obstacles, reach): (&[Obstacle], &[Option<[Vec3; 2]>]),
         reactions: &mut [Vec3],
     ) -> usize {
         let Body {
@@ -1073,7 +1075,16 @@ impl Multirate {
         for step in 0..self.substeps {
             let fraction = step as f64 / self.substeps as f64;
             if step % stride != 0 {
-                self.step_deep(s, e, gravity, dt, step, fraction, obstacles, reactions);
+                self.step_deep(
+                    s,
+                    e,
+                    gravity,
+                    dt,
+                    step,
+                    fraction,
+                    (obstacles, reach),
+                    reactions,
+                );
                 continue;
             }
             // Held nodes are where the tool takes them.
@@ -1149,7 +1160,17 @@ impl Multirate {
                 let start = self.x[i];
                 self.v[i] += self.f[i] * (step * s.inverse_mass[i]);
                 self.x[i] += self.v[i] * step;
-                for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
+                for (o, (obstacle, reaction)) in
+                    obstacles.iter().zip(reactions.iter_mut()).enumerate()
+                {
+                    if reach
+                        .get(o)
+                        .copied()
+                        .flatten()
+                        .is_some_and(|r| beyond(&self.x[i], &r))
+                    {
+                        continue;
+                    }
                     if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
                         let incoming = self.v[i];
                         (self.v[i], self.x[i]) =
@@ -1220,7 +1241,7 @@ impl Multirate {
         dt: f64,
         step: u32,
         fraction: f64,
-        obstacles: &[Obstacle],
+        (obstacles, reach): (&[Obstacle], &[Option<[Vec3; 2]>]),
         reactions: &mut [Vec3],
     ) {
         let finest = self.substeps.trailing_zeros();
@@ -1297,7 +1318,16 @@ impl Multirate {
             self.x_base[i] = start;
             self.v[i] += self.deep_force[k] * (own * s.inverse_mass[i]);
             self.x[i] += self.v[i] * own;
-            for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
+            for (o, (obstacle, reaction)) in obstacles.iter().zip(reactions.iter_mut()).enumerate()
+            {
+                if reach
+                    .get(o)
+                    .copied()
+                    .flatten()
+                    .is_some_and(|r| beyond(&self.x[i], &r))
+                {
+                    continue;
+                }
                 if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
                     let incoming = self.v[i];
                     (self.v[i], self.x[i]) = resolve_point(&start, incoming, &plane, obstacle, own);
