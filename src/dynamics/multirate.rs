@@ -1160,24 +1160,14 @@ impl Multirate {
                 let start = self.x[i];
                 self.v[i] += self.f[i] * (step * s.inverse_mass[i]);
                 self.x[i] += self.v[i] * step;
-                for (o, (obstacle, reaction)) in
-                    obstacles.iter().zip(reactions.iter_mut()).enumerate()
-                {
-                    if reach
-                        .get(o)
-                        .copied()
-                        .flatten()
-                        .is_some_and(|r| beyond(&self.x[i], &r))
-                    {
-                        continue;
-                    }
-                    if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
-                        let incoming = self.v[i];
-                        (self.v[i], self.x[i]) =
-                            resolve_point(&start, incoming, &plane, obstacle, step);
-                        *reaction += (self.v[i] - incoming) * (s.mass[i] / dt);
-                        self.touched[i] = true;
-                    }
+                if meet_obstacles(
+                    &start,
+                    (&mut self.x[i], &mut self.v[i]),
+                    (s.mass[i], step, dt),
+                    (obstacles, reach),
+                    reactions,
+                ) {
+                    self.touched[i] = true;
                 }
             }
             rigid.force_in_world += reaction_force;
@@ -1318,22 +1308,14 @@ impl Multirate {
             self.x_base[i] = start;
             self.v[i] += self.deep_force[k] * (own * s.inverse_mass[i]);
             self.x[i] += self.v[i] * own;
-            for (o, (obstacle, reaction)) in obstacles.iter().zip(reactions.iter_mut()).enumerate()
-            {
-                if reach
-                    .get(o)
-                    .copied()
-                    .flatten()
-                    .is_some_and(|r| beyond(&self.x[i], &r))
-                {
-                    continue;
-                }
-                if let Some(plane) = point_contact_plane(obstacle, &start, &self.x[i]) {
-                    let incoming = self.v[i];
-                    (self.v[i], self.x[i]) = resolve_point(&start, incoming, &plane, obstacle, own);
-                    *reaction += (self.v[i] - incoming) * (s.mass[i] / dt);
-                    self.touched[i] = true;
-                }
+            if meet_obstacles(
+                &start,
+                (&mut self.x[i], &mut self.v[i]),
+                (s.mass[i], own, dt),
+                (obstacles, reach),
+                reactions,
+            ) {
+                self.touched[i] = true;
             }
         }
     }
@@ -1561,4 +1543,35 @@ fn step_rigid_implicitly(body: &mut Body, h: f64, gravity: &Vec3) {
     let new_omega = Vec3::new(solution[3], solution[4], solution[5]);
     rigid.force_in_world = (new_velocity - velocity) * (rigid.mass / h);
     rigid.torque_in_world = inertia * (new_omega - omega) / h;
+}
+
+/// A node's substep from `start` to `x` (its velocity `v`, over `step` of the tick `dt`) met
+/// against the obstacles it may end inside (beyond an obstacle's `reach` it cannot): each contact
+/// corrects `x` and `v` and adds its reaction (the node's `mass`) to `reactions`. True when one
+/// touched it.
+fn meet_obstacles(
+    start: &Vec3,
+    (x, v): (&mut Vec3, &mut Vec3),
+    (mass, step, dt): (f64, f64, f64),
+    (obstacles, reach): (&[Obstacle], &[Option<[Vec3; 2]>]),
+    reactions: &mut [Vec3],
+) -> bool {
+    let mut touched = false;
+    for (o, (obstacle, reaction)) in obstacles.iter().zip(reactions.iter_mut()).enumerate() {
+        if reach
+            .get(o)
+            .copied()
+            .flatten()
+            .is_some_and(|r| beyond(x, &r))
+        {
+            continue;
+        }
+        if let Some(plane) = point_contact_plane(obstacle, start, x) {
+            let incoming = *v;
+            (*v, *x) = resolve_point(start, incoming, &plane, obstacle, step);
+            *reaction += (*v - incoming) * (mass / dt);
+            touched = true;
+        }
+    }
+    touched
 }
