@@ -474,6 +474,9 @@ pub struct ForceKernel {
     /// Edge forces per node, x, y, z and a zero (N, world frame), then padding: one 32-byte
     /// vector a node, so that a lane adds its force to an end with one vector operation.
     force: Vec<[f64; 4]>,
+    /// Every accumulator of `force` is zero: the node pass clears each one after reading it (the
+    /// line is in cache then), so that the next edge pass needs no clearing pass of its own.
+    force_clear: bool,
     /// The body state the batches were built for: (topology version, nodes, edges).
     built_for: Option<(u64, usize, usize)>,
     /// Use the SIMD path when the machine has one.
@@ -501,6 +504,7 @@ impl ForceKernel {
         Self {
             batches: EdgeBatches::with_capacity(nodes, edges),
             force: Vec::with_capacity(nodes),
+            force_clear: false,
             built_for: None,
             simd: true,
             listed_patches: 0,
@@ -564,8 +568,11 @@ impl ForceKernel {
     pub fn edge_forces(&mut self, body: &Body) {
         self.refresh(body);
         let n = body.node_count();
-        self.force.clear();
-        self.force.resize(n, [0.0; 4]);
+        if !self.force_clear || self.force.len() != n {
+            self.force.clear();
+            self.force.resize(n, [0.0; 4]);
+        }
+        self.force_clear = false;
         let x = &body.surface.position_in_world[..];
         let v = &body.surface.velocity_in_world[..];
         let mut energy = [0.0; LANES];
@@ -584,6 +591,7 @@ impl ForceKernel {
 
     /// Adds a force from outside the body (N, world frame) to node `i`'s accumulator.
     pub fn add_external(&mut self, i: usize, force: &Vec3) {
+        self.force_clear = false;
         let f = &mut self.force[i];
         f[0] += force.x;
         f[1] += force.y;
@@ -619,8 +627,11 @@ impl ForceKernel {
         };
         let n = surface.mass.len();
         let s = &mut *surface;
+        let simd = self.uses_simd();
+        // Every accumulator the pass reads, it clears (below: `force_clear`).
+        self.force_clear = self.force.len() == n;
         let mut nodes = Nodes {
-            edge_force: &self.force[..n],
+            edge_force: &mut self.force[..n],
             mass: &s.mass[..n],
             inverse_mass: &s.inverse_mass[..n],
             air: &s.air_damping[..n],
@@ -636,7 +647,7 @@ impl ForceKernel {
         };
         let mut sums = Sums::default();
         #[cfg(target_arch = "x86_64")]
-        if self.uses_simd() {
+        if simd {
             // SAFETY: the machine has AVX (checked by `simd_available`).
             unsafe { avx::node_pass(&frame, &mut nodes, pass, &mut sums) };
         } else {
@@ -676,7 +687,8 @@ struct Frame {
 
 /// The per-node arrays the node pass reads and writes.
 struct Nodes<'a> {
-    edge_force: &'a [[f64; 4]],
+    /// Read, then cleared for the next edge pass.
+    edge_force: &'a mut [[f64; 4]],
     mass: &'a [f64],
     inverse_mass: &'a [f64],
     air: &'a [f64],
@@ -743,6 +755,7 @@ fn node_block<const W: usize>(
             hb[d][l] = nodes.homologue_in_body[i][d];
             fe[d][l] = nodes.edge_force[i][d];
         }
+        nodes.edge_force[i] = [0.0; 4];
         m[l] = nodes.mass[i];
         im[l] = nodes.inverse_mass[i];
         air[l] = nodes.air[i];
@@ -963,8 +976,12 @@ pub(crate) mod avx {
                 let v = load3(nodes.velocity.as_ptr().add(i) as *const f64);
                 let hb = load3(nodes.homologue_in_body.as_ptr().add(i) as *const f64);
                 let fe = {
-                    let row = |l: usize| _mm256_loadu_pd(nodes.edge_force[i + l].as_ptr());
+                    let rows = nodes.edge_force.as_mut_ptr().add(i) as *mut f64;
+                    let row = |l: usize| _mm256_loadu_pd(rows.add(4 * l));
                     let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                    for l in 0..4 {
+                        _mm256_storeu_pd(rows.add(4 * l), zero);
+                    }
                     // [x0 y0 z0 0], [x1 ...] → [x0 x1 x2 x3], [y...], [z...].
                     let t0 = _mm256_unpacklo_pd(r0, r1);
                     let t1 = _mm256_unpackhi_pd(r0, r1);
