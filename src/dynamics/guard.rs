@@ -129,23 +129,12 @@ impl Measure {
     }
 
     fn pass<const BOUNDS: bool>(body: &Body) -> Self {
-        // No early exit: the largest squared speed and stretch, and whether any node's is not
-        // finite (NaN or infinite). Plain comparisons, not `f64::max` (whose NaN rule keeps the
-        // loop scalar), and an or of flags, not a sum: the same answer in any order.
         let s = &body.surface;
-        let (mut speed2, mut stretch2, mut bad) = (0.0f64, 0.0f64, false);
-        for ((v, x), h) in s
-            .velocity_in_world
-            .iter()
-            .zip(&s.position_in_world)
-            .zip(&s.homologue_in_world)
-        {
-            let v2 = v.norm_squared();
-            let s2 = (x - h).norm_squared();
-            speed2 = if v2 > speed2 { v2 } else { speed2 };
-            stretch2 = if s2 > stretch2 { s2 } else { stretch2 };
-            bad |= !(v2 + s2).is_finite();
-        }
+        let (speed2, stretch2, bad) = maxima(
+            &s.velocity_in_world,
+            &s.position_in_world,
+            &s.homologue_in_world,
+        );
         // A box only for finite positions (a NaN compares false and would shrink it).
         let bounds = (BOUNDS && !bad && !s.position_in_world.is_empty())
             .then(|| position_bounds(&s.position_in_world));
@@ -156,6 +145,85 @@ impl Measure {
             bounds,
         }
     }
+}
+
+/// The largest squared speed `|v|²` and stretch `|x − h|²` of the nodes with velocities `v`,
+/// positions `x` and homologues `h` (as many as the shortest has), and whether any node's
+/// `|v|² + |x − h|²` is not finite (NaN or infinite). No early exit. Plain comparisons, not
+/// `f64::max` (whose NaN rule keeps a loop scalar), and an or of flags, not a sum: the same answer
+/// in any order, so four nodes at a time with AVX where the machine has it (the same squares,
+/// summed in the same order, and the same comparisons), else one at a time.
+pub fn maxima(v: &[Vec3], x: &[Vec3], h: &[Vec3]) -> (f64, f64, bool) {
+    let n = v.len().min(x.len()).min(h.len());
+    let (v, x, h) = (&v[..n], &x[..n], &h[..n]);
+    #[cfg(target_arch = "x86_64")]
+    if crate::dynamics::kernel::simd_available() {
+        // SAFETY: the machine has AVX; the three slices have the same length.
+        return unsafe { avx_maxima(v, x, h) };
+    }
+    scalar_maxima(v, x, h, (0.0, 0.0, false))
+}
+
+/// [`maxima`] one node at a time, from `start` (the maxima and flag so far).
+fn scalar_maxima(v: &[Vec3], x: &[Vec3], h: &[Vec3], start: (f64, f64, bool)) -> (f64, f64, bool) {
+    let (mut speed2, mut stretch2, mut bad) = start;
+    for ((v, x), h) in v.iter().zip(x).zip(h) {
+        let v2 = v.norm_squared();
+        let s2 = (x - h).norm_squared();
+        speed2 = if v2 > speed2 { v2 } else { speed2 };
+        stretch2 = if s2 > stretch2 { s2 } else { stretch2 };
+        bad |= !(v2 + s2).is_finite();
+    }
+    (speed2, stretch2, bad)
+}
+
+/// [`maxima`] four nodes at a time (`max(a, b)` is `a > b ? a : b` in every lane, the scalar
+/// comparison), then the lanes folded and the last nodes one at a time.
+///
+/// # Safety
+/// The machine must have AVX; `v`, `x` and `h` have the same length.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn avx_maxima(v: &[Vec3], x: &[Vec3], h: &[Vec3]) -> (f64, f64, bool) {
+    use crate::dynamics::kernel::avx::{dot3, lanes, load3, sub3};
+    use std::arch::x86_64::*;
+    let n = v.len();
+    let full = n - n % 4;
+    let zero = _mm256_setzero_pd();
+    let (mut speed2, mut stretch2, mut bad) = (zero, zero, zero);
+    let magnitude = _mm256_castsi256_pd(_mm256_set1_epi64x(i64::MAX));
+    let infinity = _mm256_set1_pd(f64::INFINITY);
+    let mut i = 0;
+    while i < full {
+        // SAFETY: i + 4 <= n, the length of every slice.
+        let (vv, xx, hh) = unsafe {
+            (
+                load3(v.as_ptr().add(i) as *const f64),
+                load3(x.as_ptr().add(i) as *const f64),
+                load3(h.as_ptr().add(i) as *const f64),
+            )
+        };
+        let d = sub3(xx, hh);
+        let v2 = dot3(vv, vv);
+        let s2 = dot3(d, d);
+        speed2 = _mm256_max_pd(v2, speed2);
+        stretch2 = _mm256_max_pd(s2, stretch2);
+        // Not finite: |sum| not below infinity (a NaN compares unordered: true).
+        let sum = _mm256_and_pd(_mm256_add_pd(v2, s2), magnitude);
+        bad = _mm256_or_pd(bad, _mm256_cmp_pd::<_CMP_NLT_UQ>(sum, infinity));
+        i += 4;
+    }
+    let fold = |lanes: [f64; 4]| {
+        lanes
+            .into_iter()
+            .fold(0.0, |best, l| if l > best { l } else { best })
+    };
+    let start = (
+        fold(lanes(speed2)),
+        fold(lanes(stretch2)),
+        _mm256_movemask_pd(bad) != 0,
+    );
+    scalar_maxima(&v[full..], &x[full..], &h[full..], start)
 }
 
 /// Total mechanical energy of a body: kinetic, elastic (edges and links) and gravitational (J).
@@ -376,6 +444,52 @@ mod tests {
     use super::*;
     use crate::body::{BodyParams, Placement};
     use crate::scene::mesh::icosphere;
+
+    /// The AVX pass gives the scalar pass's answer to the bit, on nodes with every kind of value
+    /// (NaN and infinities among them, one kind at a time and all together), for every length
+    /// around a block of four.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn the_avx_maxima_are_the_scalar_ones() {
+        if !crate::dynamics::kernel::simd_available() {
+            eprintln!("no AVX on this machine: nothing to compare");
+            return;
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e200, -0.0];
+        let mut compared = 0;
+        for trial in 0..400 {
+            let n = trial % 23;
+            let mut value = |k: u64| {
+                let r = next();
+                if trial % 4 != 0 && r % 61 == k {
+                    specials[(r / 61) as usize % specials.len()]
+                } else {
+                    (r >> 11) as f64 / (1u64 << 53) as f64 * 20.0 - 10.0
+                }
+            };
+            let mut vectors = |k: u64| -> Vec<Vec3> {
+                (0..n)
+                    .map(|_| Vec3::new(value(k), value(k), value(k)))
+                    .collect()
+            };
+            let (v, x, h) = (vectors(0), vectors(1), vectors(2));
+            let simd = unsafe { avx_maxima(&v, &x, &h) };
+            let scalar = scalar_maxima(&v, &x, &h, (0.0, 0.0, false));
+            assert_eq!(simd.0.to_bits(), scalar.0.to_bits(), "speed², {n} nodes");
+            assert_eq!(simd.1.to_bits(), scalar.1.to_bits(), "stretch², {n} nodes");
+            assert_eq!(simd.2, scalar.2, "not finite, {n} nodes");
+            compared += (scalar.2 as usize) + 1;
+        }
+        // Both kinds of answer were met: finite bodies and bodies with a bad value.
+        assert!(compared > 400 && compared < 800, "{compared}");
+    }
 
     fn body() -> Body {
         Body::new(

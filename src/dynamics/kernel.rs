@@ -901,7 +901,7 @@ pub(crate) mod avx {
     /// Nodes i .. i + 4 of an array of `Vec3` (12 consecutive `f64` at `p`) as three vectors of
     /// x, y and z.
     #[inline(always)]
-    unsafe fn load3(p: *const f64) -> [__m256d; 3] {
+    pub(crate) unsafe fn load3(p: *const f64) -> [__m256d; 3] {
         unsafe {
             let m03 = _mm256_insertf128_pd::<1>(
                 _mm256_castpd128_pd256(_mm_loadu_pd(p)),
