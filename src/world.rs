@@ -9,6 +9,7 @@
 use crate::Vec3;
 use crate::body::Body;
 use crate::collision::obstacle::Obstacle;
+use crate::collision::tool::Aabb;
 use crate::contact::bodies::{
     BodyContactCounters, BodyContactScratch, resolve_body_collisions, respond_to_body_contacts,
 };
@@ -22,7 +23,7 @@ use crate::dynamics::attachment::Attachments;
 use crate::dynamics::guard::{Guard, body_energy};
 use crate::dynamics::implicit::Implicit;
 use crate::dynamics::integrate::commit_positions;
-use crate::dynamics::kernel::{ForceKernel, NodePass};
+use crate::dynamics::kernel::{BOX_BLOCK, ForceKernel, NodePass};
 use crate::dynamics::multirate::Multirate;
 use crate::dynamics::plasticity;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
@@ -138,6 +139,9 @@ pub struct World {
     pub bodies: Vec<Body>,
     /// Fixed obstacles, in scene order.
     pub obstacles: Vec<Obstacle>,
+    /// When set, every broad phase that skips nodes by the node pass's boxes first checks that
+    /// each free node's trajectory lies in its box, and counts here (for tests: a sweep of its own).
+    pub node_box_check: Option<NodeBoxCheck>,
     /// Force each obstacle exerted on the bodies during the last step (N, world frame).
     pub obstacle_reactions: Vec<Vec3>,
     /// Each obstacle's reach this step (`ObstacleShape::reach_in_world`), for the multi-rate
@@ -294,6 +298,37 @@ impl BodySolver {
                 }
                 _ => i.resize(body),
             },
+        }
+    }
+}
+
+/// What [`World::node_box_check`] found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeBoxCheck {
+    /// Broad phases that skipped nodes by the boxes.
+    pub uses: u64,
+    /// Free nodes (no tool holds them) whose start or end position lay outside their box.
+    pub misses: u64,
+    /// Free nodes checked.
+    pub nodes: u64,
+}
+
+impl NodeBoxCheck {
+    fn take(&mut self, surface: &crate::body::Surface, boxes: &[Aabb]) {
+        self.uses += 1;
+        let inside = |b: &Aabb, p: &Vec3| {
+            (0..3).all(|k| p[k].is_nan() || (b.min[k] <= p[k] && p[k] <= b.max[k]))
+        };
+        for i in 0..surface.position_in_world.len() {
+            if surface.tool_contact[i].tool != crate::contact::tool::NO_TOOL {
+                continue;
+            }
+            self.nodes += 1;
+            let held = boxes.get(i / BOX_BLOCK).is_some_and(|b| {
+                inside(b, &surface.position_in_world[i])
+                    && inside(b, &surface.next_position_in_world[i])
+            });
+            self.misses += u64::from(!held);
         }
     }
 }
@@ -485,6 +520,7 @@ impl World {
             obstacles: Vec::new(),
             obstacle_reactions: Vec::new(),
             obstacle_reach: Vec::new(),
+            node_box_check: None,
             tools: Vec::new(),
             tick: 0,
             counters: StepCounters::default(),
@@ -1084,6 +1120,20 @@ impl World {
                     fused,
                     &mut broad.held,
                 );
+                // The held nodes moved after the node pass: their trajectories join the boxes (a
+                // node released here ends where the node pass put it, the same operations, but the
+                // boxes must not rest on that).
+                if kernel.node_boxes().is_some() {
+                    let s = &body.surface;
+                    for &i in broad.held.nodes() {
+                        let i = i as usize;
+                        kernel.include_in_node_boxes(
+                            i,
+                            &s.position_in_world[i],
+                            &s.next_position_in_world[i],
+                        );
+                    }
+                }
             }
             clock.enter(Stage::Integration);
             match solver {
@@ -1108,8 +1158,16 @@ impl World {
                         fused,
                     );
                     m.take_back_contact_forces(body, carried(), dt);
+                    // Nodes moved by the solver (none when the node pass integrated them all and
+                    // no contact force was carried) are not in the node pass's boxes.
+                    if !fused || carried().next().is_some() {
+                        kernel.drop_node_boxes();
+                    }
                 }
-                BodySolver::Implicit(i) => i.integrate(body, dt),
+                BodySolver::Implicit(i) => {
+                    i.integrate(body, dt);
+                    kernel.drop_node_boxes();
+                }
             }
             if attached && let BodySolver::Multirate(m) = solver {
                 for (node, _) in self.attachments.forces_on(b) {
@@ -1122,7 +1180,13 @@ impl World {
                         continue;
                     }
                     clock.enter(Stage::BroadPhase);
-                    capture_broad_phase(&body.surface, tool, &mut broad.nodes);
+                    let node_boxes = kernel.node_boxes().map(|b| (b, BOX_BLOCK));
+                    if let (Some(check), Some((boxes, _))) =
+                        (self.node_box_check.as_mut(), node_boxes)
+                    {
+                        check.take(&body.surface, boxes);
+                    }
+                    capture_broad_phase(&body.surface, tool, node_boxes, &mut broad.nodes);
                     clock.enter(Stage::ToolCcd);
                     counters.tool_captures +=
                         capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);

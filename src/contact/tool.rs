@@ -389,15 +389,39 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
 
 /// Broad phase of the capture against one tool: the free nodes whose trajectory over the tick
 /// overlaps the tool's swept box, in index order, into `out` (allocation-free within its capacity).
-pub fn capture_broad_phase(surface: &Surface, tool: &Tool, out: &mut Vec<u32>) {
+/// With `node_boxes` (boxes of the trajectories of each block of so many consecutive nodes, as
+/// [`crate::dynamics::kernel::ForceKernel::node_boxes`] gives them), only the blocks whose box
+/// meets the tool's are looked at: the same nodes, found without reading the others.
+pub fn capture_broad_phase(
+    surface: &Surface,
+    tool: &Tool,
+    node_boxes: Option<(&[Aabb], usize)>,
+    out: &mut Vec<u32>,
+) {
     let sweep = swept_box(tool);
     out.clear();
     let (x0, x1) = (&surface.position_in_world, &surface.next_position_in_world);
-    for i in 0..x0.len() {
-        // The box first: the contact state is read only for the nodes near the tool.
-        if sweep.overlaps_segment(&x0[i], &x1[i]) && surface.tool_contact[i].tool == NO_TOOL {
-            out.push(i as u32);
+    let n = x0.len().min(x1.len());
+    let mut among = |nodes: std::ops::Range<usize>| {
+        for i in nodes {
+            // The box first: the contact state is read only for the nodes near the tool.
+            if sweep.overlaps_segment(&x0[i], &x1[i]) && surface.tool_contact[i].tool == NO_TOOL {
+                out.push(i as u32);
+            }
         }
+    };
+    match node_boxes {
+        // A node whose sweep's box meets the tool's lies in a block box that does too (each
+        // coordinate of its sweep's box is one of its block's; one that is not a number fails
+        // the node's test as well): skipping the blocks whose box misses skips no candidate.
+        Some((boxes, block)) if block > 0 && boxes.len() == n.div_ceil(block) => {
+            for (k, b) in boxes.iter().enumerate() {
+                if b.overlaps(&sweep) {
+                    among(k * block..((k + 1) * block).min(n));
+                }
+            }
+        }
+        _ => among(0..n),
     }
 }
 
