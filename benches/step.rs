@@ -84,6 +84,7 @@ fn bench_stages(c: &mut Criterion) {
                 &obstacles,
                 &mut reactions,
                 dt,
+                None,
             )
         })
     });
@@ -139,7 +140,8 @@ fn bench_contact(c: &mut Criterion) {
             let surface = &mut bodies[0].surface;
             let captured = capture_new_contacts(surface, tools, dt);
             let faces = detect_face_contacts(surface, tools, &mut outcodes);
-            let table = resolve_nodes_against_obstacles(surface, &obstacles, &mut reactions, dt);
+            let table =
+                resolve_nodes_against_obstacles(surface, &obstacles, &mut reactions, dt, None);
             black_box((captured, faces, table))
         })
     });

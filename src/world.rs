@@ -8,6 +8,7 @@
 
 use crate::Vec3;
 use crate::body::Body;
+use crate::collision::blocks::{BLOCK, NodeBlock};
 use crate::collision::obstacle::Obstacle;
 use crate::collision::tool::Aabb;
 use crate::contact::bodies::{
@@ -20,10 +21,10 @@ use crate::contact::tool::{
 };
 use crate::dynamics::Integrator;
 use crate::dynamics::attachment::Attachments;
-use crate::dynamics::guard::{Guard, body_energy};
+use crate::dynamics::guard::{Guard, body_energy, maxima as guard_maxima, maxima_by_blocks};
 use crate::dynamics::implicit::Implicit;
 use crate::dynamics::integrate::commit_positions;
-use crate::dynamics::kernel::{BOX_BLOCK, ForceKernel, NodePass};
+use crate::dynamics::kernel::{ForceKernel, NodePass};
 use crate::dynamics::multirate::Multirate;
 use crate::dynamics::plasticity;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
@@ -140,7 +141,9 @@ pub struct World {
     /// Fixed obstacles, in scene order.
     pub obstacles: Vec<Obstacle>,
     /// When set, every broad phase that skips nodes by the node pass's boxes first checks that
-    /// each free node's trajectory lies in its box, and counts here (for tests: a sweep of its own).
+    /// each free node's trajectory lies in its box, and every guard pass taken from the node
+    /// pass's blocks is compared with one over every node; counted here (for tests: sweeps of
+    /// their own).
     pub node_box_check: Option<NodeBoxCheck>,
     /// Force each obstacle exerted on the bodies during the last step (N, world frame).
     pub obstacle_reactions: Vec<Vec3>,
@@ -311,10 +314,15 @@ pub struct NodeBoxCheck {
     pub misses: u64,
     /// Free nodes checked.
     pub nodes: u64,
+    /// Guard passes taken from the blocks.
+    pub maxima: u64,
+    /// Of these, passes whose largest squared speed or stretch or flag differed from a pass over
+    /// every node.
+    pub maxima_misses: u64,
 }
 
 impl NodeBoxCheck {
-    fn take(&mut self, surface: &crate::body::Surface, boxes: &[Aabb]) {
+    fn take(&mut self, surface: &crate::body::Surface, blocks: &[NodeBlock]) {
         self.uses += 1;
         let inside = |b: &Aabb, p: &Vec3| {
             (0..3).all(|k| p[k].is_nan() || (b.min[k] <= p[k] && p[k] <= b.max[k]))
@@ -324,9 +332,9 @@ impl NodeBoxCheck {
                 continue;
             }
             self.nodes += 1;
-            let held = boxes.get(i / BOX_BLOCK).is_some_and(|b| {
-                inside(b, &surface.position_in_world[i])
-                    && inside(b, &surface.next_position_in_world[i])
+            let held = blocks.get(i / BLOCK).is_some_and(|b| {
+                inside(&b.bounds, &surface.position_in_world[i])
+                    && inside(&b.bounds, &surface.next_position_in_world[i])
             });
             self.misses += u64::from(!held);
         }
@@ -1109,6 +1117,12 @@ impl World {
             kernel.node_pass(body, &gravity, dt, pass);
             if hold {
                 broad.held.restore_velocities(&mut body.surface);
+                // Their velocities are not the node pass's: they join their blocks.
+                if kernel.blocks.bounds(body.node_count()).is_some() {
+                    for &i in broad.held.nodes() {
+                        kernel.blocks.include(&body.surface, i as usize);
+                    }
+                }
             }
             clock.enter(Stage::Contact);
             if systems.tool_contact {
@@ -1123,15 +1137,9 @@ impl World {
                 // The held nodes moved after the node pass: their trajectories join the boxes (a
                 // node released here ends where the node pass put it, the same operations, but the
                 // boxes must not rest on that).
-                if kernel.node_boxes().is_some() {
-                    let s = &body.surface;
+                if kernel.blocks.bounds(body.node_count()).is_some() {
                     for &i in broad.held.nodes() {
-                        let i = i as usize;
-                        kernel.include_in_node_boxes(
-                            i,
-                            &s.position_in_world[i],
-                            &s.next_position_in_world[i],
-                        );
+                        kernel.blocks.include(&body.surface, i as usize);
                     }
                 }
             }
@@ -1161,12 +1169,12 @@ impl World {
                     // Nodes moved by the solver (none when the node pass integrated them all and
                     // no contact force was carried) are not in the node pass's boxes.
                     if !fused || carried().next().is_some() {
-                        kernel.drop_node_boxes();
+                        kernel.blocks.drop_all();
                     }
                 }
                 BodySolver::Implicit(i) => {
                     i.integrate(body, dt);
-                    kernel.drop_node_boxes();
+                    kernel.blocks.drop_all();
                 }
             }
             if attached && let BodySolver::Multirate(m) = solver {
@@ -1180,17 +1188,21 @@ impl World {
                         continue;
                     }
                     clock.enter(Stage::BroadPhase);
-                    let node_boxes = kernel.node_boxes().map(|b| (b, BOX_BLOCK));
-                    if let (Some(check), Some((boxes, _))) =
-                        (self.node_box_check.as_mut(), node_boxes)
-                    {
-                        check.take(&body.surface, boxes);
+                    let blocks = kernel.blocks.bounds(body.node_count());
+                    if let (Some(check), Some(blocks)) = (self.node_box_check.as_mut(), blocks) {
+                        check.take(&body.surface, blocks);
                     }
-                    capture_broad_phase(&body.surface, tool, node_boxes, &mut broad.nodes);
+                    capture_broad_phase(&body.surface, tool, blocks, &mut broad.nodes);
                     clock.enter(Stage::ToolCcd);
                     counters.tool_captures +=
                         capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
                     broad.held.add_captured(&body.surface, &broad.nodes);
+                    // The captured nodes moved (to where they touched, carried with the tool).
+                    if blocks.is_some() {
+                        for &i in &broad.nodes {
+                            kernel.blocks.include(&body.surface, i as usize);
+                        }
+                    }
                 }
                 clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {
@@ -1204,6 +1216,7 @@ impl World {
                     if inserted > 0 {
                         counters.refinements += inserted;
                         solver.topology_changed(body, dt, None);
+                        kernel.blocks.drop_all();
                     }
                 }
             }
@@ -1214,6 +1227,7 @@ impl World {
                     &self.obstacles,
                     &mut self.obstacle_reactions,
                     dt,
+                    Some(&mut kernel.blocks),
                 );
                 // The implicit body answers its contacts within the step: the nodes the contact
                 // stopped are pinned and the rest solved again, a few rounds at most.
@@ -1227,19 +1241,29 @@ impl World {
                             &self.obstacles,
                             &mut self.obstacle_reactions,
                             dt,
+                            None,
                         );
                     }
                 }
             }
             if systems.tool_contact {
-                counters.tool_push_outs +=
-                    push_out_of_tools(&mut body.surface, &self.tools, cutting_blades, dt);
+                counters.tool_push_outs += push_out_of_tools(
+                    &mut body.surface,
+                    &self.tools,
+                    cutting_blades,
+                    dt,
+                    Some(&mut kernel.blocks),
+                );
             }
         }
         clock.enter(Stage::BodyContact);
         if systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
+            // The bodies' contact moves nodes of any body: the guard makes its own pass.
+            for kernel in &mut self.kernels {
+                kernel.blocks.drop_maxima();
+            }
             let solvers = &self.solvers;
             let sub_stepped = |body: usize, node: usize| match solvers.get(body) {
                 Some(BodySolver::Multirate(m)) => m.carries_contact_forces_to(node),
@@ -1284,9 +1308,13 @@ impl World {
             .zip(self.refinements.iter_mut())
             .zip(self.cutters.iter_mut())
             .zip(self.guards.iter_mut())
-            .zip(&self.kernels)
+            .zip(self.kernels.iter_mut())
             .zip(self.broad.iter_mut())
         {
+            // Cuts, tears and transections change the nodes: the guard makes its own pass.
+            if cutter.is_some() {
+                kernel.blocks.drop_all();
+            }
             if systems.cutting
                 && let Some(cutter) = cutter.as_mut()
             {
@@ -1387,6 +1415,7 @@ impl World {
                 if removed > 0 {
                     counters.coarsenings += removed;
                     solver.topology_changed(body, dt, None);
+                    kernel.blocks.drop_all();
                 }
             }
         }
@@ -1453,6 +1482,26 @@ impl World {
                 kernel.energy
             };
             guard.keep_start = several && !refined_now;
+            // The node pass's blocks, where nothing moved the nodes since without a record.
+            if let Some(blocks) = kernel.blocks.maxima(body.node_count()) {
+                let s = &body.surface;
+                let (v, x, h) = (
+                    &s.velocity_in_world,
+                    &s.position_in_world,
+                    &s.homologue_in_world,
+                );
+                let found = maxima_by_blocks(blocks, v, x, h);
+                if let Some(check) = self.node_box_check.as_mut() {
+                    let every = guard_maxima(v, x, h);
+                    check.maxima += 1;
+                    check.maxima_misses += u64::from(
+                        found.0.to_bits() != every.0.to_bits()
+                            || found.1.to_bits() != every.1.to_bits()
+                            || found.2 != every.2,
+                    );
+                }
+                guard.take_maxima(found);
+            }
             if guard.check(body, Some(energy)).is_some() {
                 counters.guard_events += 1;
                 // The restored shape may cross an obstacle the deformed one was resting on.

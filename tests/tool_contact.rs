@@ -425,6 +425,10 @@ fn the_node_boxes_hold_every_free_trajectory_the_broad_phase_skips_by() {
         "plastic",
         "tear",
         "transection",
+        "table_rest",
+        "inclined_plane",
+        "liver",
+        "organ",
     ] {
         let scene = load_scene(&common::repo_root().join(format!("scenes/{name}.toml"))).unwrap();
         let mut world = World::from_scene(&scene);
@@ -436,11 +440,15 @@ fn the_node_boxes_hold_every_free_trajectory_the_broad_phase_skips_by() {
         }
         let check = world.node_box_check.unwrap();
         assert_eq!(check.misses, 0, "{name}: {check:?}");
+        assert_eq!(check.maxima_misses, 0, "{name}: {check:?}");
         println!("{name}: {check:?}, {captures} captures");
         total.uses += check.uses;
         total.nodes += check.nodes;
         total.misses += check.misses;
+        total.maxima += check.maxima;
     }
     // The boxes were used, over many nodes (most scenes integrate every node in the node pass).
     assert!(total.uses > 5_000 && total.nodes > 2_000_000, "{total:?}");
+    // The guard read the blocks at most of those ticks.
+    assert!(total.maxima > 5_000, "{total:?}");
 }

@@ -10,6 +10,7 @@
 
 use crate::Vec3;
 use crate::body::Surface;
+use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
 use crate::collision::obstacle::{ContactPlane, Obstacle, beyond};
 
 /// Resolves every node of `surface` against every obstacle (obstacles in scene order, each node
@@ -17,44 +18,92 @@ use crate::collision::obstacle::{ContactPlane, Obstacle, beyond};
 ///
 /// `reactions[k]` accumulates the force obstacle `k` exerts on the nodes (N): the momentum its contacts
 /// changed, divided by the step.
+///
+/// With `blocks` (the node pass's, whose boxes hold every trajectory), the blocks that lie wholly
+/// outside an obstacle are skipped ([`misses`]), and the nodes it moved join their blocks.
 pub fn resolve_nodes_against_obstacles(
     surface: &mut Surface,
     obstacles: &[Obstacle],
     reactions: &mut [Vec3],
     dt: f64,
+    mut blocks: Option<&mut NodeBlocks>,
 ) -> usize {
     let mut contacts = 0;
     let n = surface.position_in_world.len();
     for (obstacle, reaction) in obstacles.iter().zip(reactions.iter_mut()) {
-        match obstacle.shape.as_plane() {
-            // The common case gets a tight loop: one dot product per node.
-            Some(plane) => {
-                for i in 0..n {
-                    if plane.signed_distance(&surface.next_position_in_world[i]) < 0.0 {
-                        *reaction += resolve_node(surface, i, &plane, obstacle, dt);
-                        contacts += 1;
+        let plane = obstacle.shape.as_plane();
+        let reach = obstacle.shape.reach_in_world();
+        for k in 0..n.div_ceil(BLOCK) {
+            if let Some(b) = blocks.as_ref().and_then(|b| b.bounds(n))
+                && misses(plane.as_ref(), reach.as_ref(), &b[k])
+            {
+                continue;
+            }
+            let nodes = k * BLOCK..((k + 1) * BLOCK).min(n);
+            // The nodes the obstacle moves join their block.
+            let mut moved = |surface: &Surface, i: usize| {
+                if let Some(blocks) = blocks.as_mut() {
+                    blocks.include(surface, i);
+                }
+            };
+            match &plane {
+                // The common case gets a tight loop: one dot product per node.
+                Some(plane) => {
+                    for i in nodes {
+                        if plane.signed_distance(&surface.next_position_in_world[i]) < 0.0 {
+                            *reaction += resolve_node(surface, i, plane, obstacle, dt);
+                            contacts += 1;
+                            moved(surface, i);
+                        }
                     }
                 }
-            }
-            None => {
-                let shape = &obstacle.shape;
-                let reach = shape.reach_in_world();
-                for i in 0..n {
-                    let end = surface.next_position_in_world[i];
-                    // Most nodes end far from a box: six comparisons, no rotation.
-                    if reach.as_ref().is_some_and(|reach| beyond(&end, reach)) {
-                        continue;
-                    }
-                    let start = surface.position_in_world[i];
-                    if let Some(plane) = shape.contact_plane(&start, &end) {
-                        *reaction += resolve_node(surface, i, &plane, obstacle, dt);
-                        contacts += 1;
+                None => {
+                    let shape = &obstacle.shape;
+                    for i in nodes {
+                        let end = surface.next_position_in_world[i];
+                        // Most nodes end far from a box: six comparisons, no rotation.
+                        if reach.as_ref().is_some_and(|reach| beyond(&end, reach)) {
+                            continue;
+                        }
+                        let start = surface.position_in_world[i];
+                        if let Some(plane) = shape.contact_plane(&start, &end) {
+                            *reaction += resolve_node(surface, i, &plane, obstacle, dt);
+                            contacts += 1;
+                            moved(surface, i);
+                        }
                     }
                 }
             }
         }
     }
     contacts
+}
+
+/// No node of `block` can meet an obstacle with this half-space `plane` or box `reach` (as
+/// [`ObstacleShape::as_plane`] and [`ObstacleShape::reach_in_world`] give them): the block's box
+/// lies outside. Never for a block with a value that is not finite. For a half-space, the box's
+/// corner deepest along the normal is above the surface by more than rounding can account for
+/// (1 nm for every metre of the coordinates' size): every end position in the box then gives a
+/// signed distance above 0. For a box, the block's box is beyond the reach on some axis (the
+/// comparisons of [`beyond`], which then holds for every node of the block).
+///
+/// [`ObstacleShape::as_plane`]: crate::collision::obstacle::ObstacleShape::as_plane
+/// [`ObstacleShape::reach_in_world`]: crate::collision::obstacle::ObstacleShape::reach_in_world
+pub fn misses(plane: Option<&ContactPlane>, reach: Option<&[Vec3; 2]>, block: &NodeBlock) -> bool {
+    if block.bad {
+        return false;
+    }
+    let b = &block.bounds;
+    match (plane, reach) {
+        (Some(plane), _) => {
+            let n = &plane.normal_in_world;
+            let corner = Vec3::from_fn(|k, _| if n[k] >= 0.0 { b.min[k] } else { b.max[k] });
+            let size = b.min.amax().max(b.max.amax()) + plane.point_in_world.amax() + 1.0;
+            plane.signed_distance(&corner) > 1e-9 * size
+        }
+        (None, Some([lower, upper])) => (0..3).any(|k| b.max[k] < lower[k] || b.min[k] > upper[k]),
+        (None, None) => false,
+    }
 }
 
 /// Node `i` ends the step below `plane`: inelastic normal response, Coulomb friction, end position

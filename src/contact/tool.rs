@@ -22,6 +22,7 @@ use crate::Vec3;
 use crate::body::Surface;
 use crate::body::changes::TopologyChanges;
 pub use crate::body::{JawHold, NO_TOOL, ToolContact};
+use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
 use crate::collision::tool::{
     Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule,
 };
@@ -389,13 +390,12 @@ pub fn capture_new_contacts(surface: &mut Surface, tools: &mut [Tool], dt: f64) 
 
 /// Broad phase of the capture against one tool: the free nodes whose trajectory over the tick
 /// overlaps the tool's swept box, in index order, into `out` (allocation-free within its capacity).
-/// With `node_boxes` (boxes of the trajectories of each block of so many consecutive nodes, as
-/// [`crate::dynamics::kernel::ForceKernel::node_boxes`] gives them), only the blocks whose box
-/// meets the tool's are looked at: the same nodes, found without reading the others.
+/// With `blocks` (the node pass's blocks, whose boxes hold every trajectory), only the blocks
+/// whose box meets the tool's are looked at: the same nodes, found without reading the others.
 pub fn capture_broad_phase(
     surface: &Surface,
     tool: &Tool,
-    node_boxes: Option<(&[Aabb], usize)>,
+    blocks: Option<&[NodeBlock]>,
     out: &mut Vec<u32>,
 ) {
     let sweep = swept_box(tool);
@@ -410,14 +410,14 @@ pub fn capture_broad_phase(
             }
         }
     };
-    match node_boxes {
+    match blocks {
         // A node whose sweep's box meets the tool's lies in a block box that does too (each
         // coordinate of its sweep's box is one of its block's; one that is not a number fails
         // the node's test as well): skipping the blocks whose box misses skips no candidate.
-        Some((boxes, block)) if block > 0 && boxes.len() == n.div_ceil(block) => {
-            for (k, b) in boxes.iter().enumerate() {
-                if b.overlaps(&sweep) {
-                    among(k * block..((k + 1) * block).min(n));
+        Some(blocks) if blocks.len() == n.div_ceil(BLOCK) => {
+            for (k, b) in blocks.iter().enumerate() {
+                if b.bounds.overlaps(&sweep) {
+                    among(k * BLOCK..((k + 1) * BLOCK).min(n));
                 }
             }
         }
@@ -593,8 +593,19 @@ fn face_touched(surface: &Surface, tool: &Tool, &[a, b, c]: &[u32; 3]) -> bool {
 /// Step 4: moves any node left inside a tool capsule at the end of the tick onto its surface; returns
 /// how many were moved.
 /// Tools whose bit is set in `skip` (bit k for tool k) are left out: blades cutting this body.
-pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f64) -> u32 {
+///
+/// With `blocks` (the node pass's, whose boxes hold every trajectory), the blocks whose box misses
+/// a tool's reach are skipped (a node ending in the reach lies in its block's box), and the nodes
+/// moved join their blocks.
+pub fn push_out_of_tools(
+    surface: &mut Surface,
+    tools: &[Tool],
+    skip: u64,
+    dt: f64,
+    mut blocks: Option<&mut NodeBlocks>,
+) -> u32 {
     let mut moved = 0;
+    let n = surface.next_position_in_world.len();
     for (index, tool) in tools.iter().enumerate() {
         if index < 64 && skip & (1 << index) != 0 {
             continue;
@@ -607,20 +618,30 @@ pub fn push_out_of_tools(surface: &mut Surface, tools: &[Tool], skip: u64, dt: f
             margin = margin.max(part.radius);
         }
         reach.inflate(margin);
-        for i in 0..surface.next_position_in_world.len() {
-            let p = surface.next_position_in_world[i];
-            // The box first: it reads the positions the loop streams through, the contact state
-            // (a wide record per node) only for the few nodes near the tool.
-            if !reach.overlaps_segment(&p, &p) || surface.tool_contact[i].grasp.is_some() {
+        for k in 0..n.div_ceil(BLOCK) {
+            if let Some(b) = blocks.as_ref().and_then(|b| b.bounds(n))
+                && !b[k].bounds.overlaps(&reach)
+            {
                 continue;
             }
-            let (distance, part) = tool.signed_distance(&p);
-            // Nodes placed on the surface sit there to rounding; deeper than that is a squeeze.
-            if distance < -SURFACE_ROUNDING {
-                let (on_surface, _) = tool.parts_end[part].project_to_surface(&p, &Vec3::z());
-                surface.next_position_in_world[i] = on_surface;
-                surface.velocity_in_world[i] += (on_surface - p) / dt;
-                moved += 1;
+            for i in k * BLOCK..((k + 1) * BLOCK).min(n) {
+                let p = surface.next_position_in_world[i];
+                // The box first: it reads the positions the loop streams through, the contact
+                // state (a wide record per node) only for the few nodes near the tool.
+                if !reach.overlaps_segment(&p, &p) || surface.tool_contact[i].grasp.is_some() {
+                    continue;
+                }
+                let (distance, part) = tool.signed_distance(&p);
+                // Nodes placed on the surface sit there to rounding; deeper than that is a squeeze.
+                if distance < -SURFACE_ROUNDING {
+                    let (on_surface, _) = tool.parts_end[part].project_to_surface(&p, &Vec3::z());
+                    surface.next_position_in_world[i] = on_surface;
+                    surface.velocity_in_world[i] += (on_surface - p) / dt;
+                    moved += 1;
+                    if let Some(blocks) = blocks.as_mut() {
+                        blocks.include(surface, i);
+                    }
+                }
             }
         }
     }

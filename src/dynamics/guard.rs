@@ -11,6 +11,7 @@
 
 use crate::Vec3;
 use crate::body::{Body, RigidComponent};
+use crate::collision::blocks::{BLOCK, NodeBlock};
 use crate::collision::tool::Aabb;
 
 /// Why the guard acted.
@@ -164,6 +165,38 @@ pub fn maxima(v: &[Vec3], x: &[Vec3], h: &[Vec3]) -> (f64, f64, bool) {
     scalar_maxima(v, x, h, (0.0, 0.0, false))
 }
 
+/// [`maxima`] from what the node pass learnt of each block of nodes: the maxima and flag of each
+/// block it saw whole, and the nodes of the blocks a stage touched after it rescanned (the same
+/// comparisons, in another order: the same answer).
+pub fn maxima_by_blocks(
+    blocks: &[NodeBlock],
+    v: &[Vec3],
+    x: &[Vec3],
+    h: &[Vec3],
+) -> (f64, f64, bool) {
+    let n = v.len().min(x.len()).min(h.len());
+    let mut found = (0.0, 0.0, false);
+    for (k, b) in blocks.iter().enumerate() {
+        if b.touched {
+            let nodes = (k * BLOCK).min(n)..((k + 1) * BLOCK).min(n);
+            found = scalar_maxima(&v[nodes.clone()], &x[nodes.clone()], &h[nodes], found);
+        } else {
+            found.0 = if b.speed2 > found.0 {
+                b.speed2
+            } else {
+                found.0
+            };
+            found.1 = if b.stretch2 > found.1 {
+                b.stretch2
+            } else {
+                found.1
+            };
+            found.2 |= b.bad;
+        }
+    }
+    found
+}
+
 /// [`maxima`] one node at a time, from `start` (the maxima and flag so far).
 fn scalar_maxima(v: &[Vec3], x: &[Vec3], h: &[Vec3], start: (f64, f64, bool)) -> (f64, f64, bool) {
     let (mut speed2, mut stretch2, mut bad) = start;
@@ -280,6 +313,18 @@ impl Guard {
     /// the speeds, the stretches nor the box grow (nor can a value stop being finite).
     pub fn measure(&mut self, body: &Body, bounds: bool) {
         self.measured = Some(Measure::of(body, bounds));
+    }
+
+    /// Takes the largest squared speed and stretch of the nodes and whether any value is not
+    /// finite, found in the state the next [`Guard::check`] looks at ([`maxima_by_blocks`]), as its
+    /// pass over the nodes.
+    pub fn take_maxima(&mut self, (speed2, stretch2, bad): (f64, f64, bool)) {
+        self.measured = Some(Measure {
+            speed2,
+            stretch2,
+            bad,
+            bounds: None,
+        });
     }
 
     /// The box of the node positions the last [`Guard::measure`] found (exact: every node inside,

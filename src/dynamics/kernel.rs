@@ -14,14 +14,10 @@
 
 use crate::Vec3;
 use crate::body::{Body, Edges, TopologyChanges};
-use crate::collision::tool::Aabb;
+use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
 
 /// Edges per batch (one AVX register of `f64`).
 pub const LANES: usize = 4;
-
-/// Nodes a box of [`ForceKernel::node_boxes`] covers: consecutive nodes, close in space when the
-/// mesh is ordered for locality (as every mesh a scene loads is).
-pub const BOX_BLOCK: usize = 64;
 
 /// The edges in batches of [`LANES`] with distinct endpoints, each batch's data side by side. A lane
 /// with no edge has node 0 at both ends (no length: no force, no energy), so every batch is full.
@@ -482,11 +478,9 @@ pub struct ForceKernel {
     /// Every accumulator of `force` is zero: the node pass clears each one after reading it (the
     /// line is in cache then), so that the next edge pass needs no clearing pass of its own.
     force_clear: bool,
-    /// Per [`BOX_BLOCK`] nodes, the box of their start and end positions, made by the last node
-    /// pass when it integrated every node (see [`ForceKernel::node_boxes`]).
-    node_boxes: Vec<Aabb>,
-    /// `node_boxes` hold every node of this step's trajectories.
-    node_boxes_valid: bool,
+    /// What the last node pass learnt of each block of nodes, when it integrated every node on
+    /// the SIMD path (the world keeps them true as the later stages move nodes).
+    pub blocks: NodeBlocks,
     /// The body state the batches were built for: (topology version, nodes, edges).
     built_for: Option<(u64, usize, usize)>,
     /// Use the SIMD path when the machine has one.
@@ -515,8 +509,7 @@ impl ForceKernel {
             batches: EdgeBatches::with_capacity(nodes, edges),
             force: Vec::with_capacity(nodes),
             force_clear: false,
-            node_boxes: Vec::with_capacity(nodes.div_ceil(BOX_BLOCK)),
-            node_boxes_valid: false,
+            blocks: NodeBlocks::with_capacity(nodes),
             built_for: None,
             simd: true,
             listed_patches: 0,
@@ -585,7 +578,7 @@ impl ForceKernel {
             self.force.resize(n, [0.0; 4]);
         }
         self.force_clear = false;
-        self.node_boxes_valid = false;
+        self.blocks.drop_all();
         let x = &body.surface.position_in_world[..];
         let v = &body.surface.velocity_in_world[..];
         let mut energy = [0.0; LANES];
@@ -600,32 +593,6 @@ impl ForceKernel {
         }
         scalar_edge_pass(&self.batches, x, v, &mut self.force, &mut energy);
         self.edge_energy = lane_sum(&energy);
-    }
-
-    /// Per [`BOX_BLOCK`] consecutive nodes (box `k` for nodes `k·BOX_BLOCK ..`), a box holding
-    /// each node's start and end position of the step (`position_in_world`,
-    /// `next_position_in_world`; a coordinate that is not a number left out), when the last node
-    /// pass integrated every node on the SIMD path and nothing made the boxes stale since: a
-    /// broad phase skips the nodes of a box its query misses. Whoever moves a node after the node
-    /// pass includes it again ([`ForceKernel::include_in_node_boxes`]) or drops the boxes
-    /// ([`ForceKernel::drop_node_boxes`]).
-    pub fn node_boxes(&self) -> Option<&[Aabb]> {
-        self.node_boxes_valid.then_some(&self.node_boxes[..])
-    }
-
-    /// Grows the box of node `i` to hold its start `x` and end `next`.
-    pub fn include_in_node_boxes(&mut self, i: usize, x: &Vec3, next: &Vec3) {
-        if let Some(b) = self.node_boxes.get_mut(i / BOX_BLOCK) {
-            b.include(x);
-            b.include(next);
-        } else {
-            self.node_boxes_valid = false;
-        }
-    }
-
-    /// The boxes no longer hold every node's trajectory.
-    pub fn drop_node_boxes(&mut self) {
-        self.node_boxes_valid = false;
     }
 
     /// Adds a force from outside the body (N, world frame) to node `i`'s accumulator.
@@ -669,13 +636,8 @@ impl ForceKernel {
         let simd = self.uses_simd();
         // Every accumulator the pass reads, it clears (below: `force_clear`).
         self.force_clear = self.force.len() == n;
-        // The boxes of the trajectories, when every node is integrated here with SIMD.
-        let boxes = simd && pass == NodePass::IntegrateAll;
-        self.node_boxes_valid = boxes;
-        if boxes {
-            self.node_boxes.clear();
-            self.node_boxes.resize(n.div_ceil(BOX_BLOCK), Aabb::empty());
-        }
+        // The blocks, when every node is integrated here with SIMD.
+        let blocks = simd && pass == NodePass::IntegrateAll;
         let mut nodes = Nodes {
             edge_force: &mut self.force[..n],
             mass: &s.mass[..n],
@@ -695,8 +657,8 @@ impl ForceKernel {
         #[cfg(target_arch = "x86_64")]
         if simd {
             // SAFETY: the machine has AVX (checked by `simd_available`).
-            let boxes = boxes.then_some(&mut self.node_boxes[..]);
-            unsafe { avx::node_pass(&frame, &mut nodes, pass, &mut sums, boxes) };
+            let blocks = blocks.then(|| self.blocks.start(n));
+            unsafe { avx::node_pass(&frame, &mut nodes, pass, &mut sums, blocks) };
         } else {
             node_blocks(&frame, &mut nodes, pass, &mut sums);
         }
@@ -941,8 +903,9 @@ fn scalar_edge_pass(
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx {
-    use super::{Aabb, BOX_BLOCK, EdgeBatches, LANES};
+    use super::{BLOCK, EdgeBatches, LANES, NodeBlock};
     use crate::Vec3;
+    use crate::collision::tool::Aabb;
     use std::arch::x86_64::*;
 
     /// Nodes i .. i + 4 of an array of `Vec3` (12 consecutive `f64` at `p`) as three vectors of
@@ -997,7 +960,7 @@ pub(crate) mod avx {
         nodes: &mut super::Nodes,
         pass: super::NodePass,
         sums: &mut super::Sums,
-        mut boxes: Option<&mut [Aabb]>,
+        mut blocks: Option<&mut [NodeBlock]>,
     ) {
         use super::NodePass;
         let n = nodes.mass.len();
@@ -1016,11 +979,16 @@ pub(crate) mod avx {
         let add = |a, b| _mm256_add_pd(a, b);
         let sub = |a, b| _mm256_sub_pd(a, b);
         let mul = |a, b| _mm256_mul_pd(a, b);
-        // The box of the current block's start and end positions, per lane: `min(p, lo)` is
-        // `p < lo ? p : lo`, so a coordinate that is not a number leaves it as it was.
-        let track = boxes.is_some() && pass == NodePass::IntegrateAll;
+        // The current block, per lane: the box of its start and end positions (`min(p, lo)` is
+        // `p < lo ? p : lo`, so a coordinate that is not a number leaves it as it was) and the
+        // guard's maxima (`max(a, b)` is `a > b ? a : b`, its comparison) and flag, of the end
+        // state: `|v|²` and `|x_end − h|²` as the guard computes them.
+        let track = blocks.is_some() && pass == NodePass::IntegrateAll;
         let (empty_lo, empty_hi) = (splat(f64::INFINITY), splat(f64::NEG_INFINITY));
         let (mut lo, mut hi) = ([empty_lo; 3], [empty_hi; 3]);
+        let (mut most_speed2, mut most_stretch2, mut bad) = (zero, zero, zero);
+        let magnitude = _mm256_castsi256_pd(_mm256_set1_epi64x(i64::MAX));
+        let infinity = splat(f64::INFINITY);
         let mut i = 0;
         while i < full {
             // SAFETY: i + 4 <= n, the length of every slice read or written.
@@ -1121,15 +1089,25 @@ pub(crate) mod avx {
                             lo[d] = _mm256_min_pd(next[d], _mm256_min_pd(x[d], lo[d]));
                             hi[d] = _mm256_max_pd(next[d], _mm256_max_pd(x[d], hi[d]));
                         }
+                        let v2 = dot3(velocity, velocity);
+                        let s2 = {
+                            let d = sub3(next, h);
+                            dot3(d, d)
+                        };
+                        most_speed2 = _mm256_max_pd(v2, most_speed2);
+                        most_stretch2 = _mm256_max_pd(s2, most_stretch2);
+                        let sum = _mm256_and_pd(_mm256_add_pd(v2, s2), magnitude);
+                        bad = _mm256_or_pd(bad, _mm256_cmp_pd::<_CMP_NLT_UQ>(sum, infinity));
                     }
                 }
             }
             i += LANES;
-            if track && (i % BOX_BLOCK == 0 || i == full) {
-                if let Some(boxes) = boxes.as_mut() {
-                    boxes[(i - 1) / BOX_BLOCK] = fold_box(lo, hi);
+            if track && (i % BLOCK == 0 || i == full) {
+                if let Some(blocks) = blocks.as_mut() {
+                    blocks[(i - 1) / BLOCK] = fold_block(lo, hi, [most_speed2, most_stretch2, bad]);
                 }
                 (lo, hi) = ([empty_lo; 3], [empty_hi; 3]);
+                (most_speed2, most_stretch2, bad) = (zero, zero, zero);
             }
         }
         sums.kinetic = lanes(kinetic);
@@ -1139,18 +1117,24 @@ pub(crate) mod avx {
         sums.torque = torque_sum.map(|t| lanes(t));
         for i in full..n {
             super::node_block::<1>(f, nodes, pass, sums, i);
-            if track && let Some(b) = boxes.as_mut().and_then(|b| b.get_mut(i / BOX_BLOCK)) {
-                b.include(&nodes.position[i]);
-                b.include(&nodes.next_position[i]);
+            // The last nodes, one at a time: their block's box grows, and the guard rescans it.
+            if track && let Some(b) = blocks.as_mut().and_then(|b| b.get_mut(i / BLOCK)) {
+                b.bounds.include(&nodes.position[i]);
+                b.bounds.include(&nodes.next_position[i]);
+                b.touched = true;
             }
         }
     }
 
-    /// The box of per-lane least and greatest coordinates (the lanes folded with the same
-    /// comparisons).
+    /// A block from its per-lane least and greatest coordinates and maxima (the lanes folded with
+    /// the same comparisons) and flags.
     #[target_feature(enable = "avx")]
     #[inline]
-    fn fold_box(lo: [__m256d; 3], hi: [__m256d; 3]) -> Aabb {
+    fn fold_block(
+        lo: [__m256d; 3],
+        hi: [__m256d; 3],
+        [speed2, stretch2, bad]: [__m256d; 3],
+    ) -> NodeBlock {
         let least = |l: [f64; LANES]| {
             l.into_iter()
                 .fold(f64::INFINITY, |a, l| if l < a { l } else { a })
@@ -1159,10 +1143,17 @@ pub(crate) mod avx {
             l.into_iter()
                 .fold(f64::NEG_INFINITY, |a, l| if l > a { l } else { a })
         };
+        let largest = |l: [f64; LANES]| l.into_iter().fold(0.0, |a, l| if l > a { l } else { a });
         let (lo, hi) = (lo.map(|v| lanes(v)), hi.map(|v| lanes(v)));
-        Aabb {
-            min: Vec3::new(least(lo[0]), least(lo[1]), least(lo[2])),
-            max: Vec3::new(greatest(hi[0]), greatest(hi[1]), greatest(hi[2])),
+        NodeBlock {
+            bounds: Aabb {
+                min: Vec3::new(least(lo[0]), least(lo[1]), least(lo[2])),
+                max: Vec3::new(greatest(hi[0]), greatest(hi[1]), greatest(hi[2])),
+            },
+            speed2: largest(lanes(speed2)),
+            stretch2: largest(lanes(stretch2)),
+            bad: _mm256_movemask_pd(bad) != 0,
+            touched: false,
         }
     }
 
