@@ -534,9 +534,10 @@ impl ForceKernel {
         &self.batches
     }
 
-    /// Forgets the batches: the next pass rebuilds them.
+    /// Forgets the batches (the next pass rebuilds them) and the node blocks (the body changed).
     pub fn invalidate(&mut self) {
         self.built_for = None;
+        self.blocks.drop_all();
     }
 
     /// Rebuilds the batches for `body` if its topology changed since they were built.
