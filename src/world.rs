@@ -1260,10 +1260,6 @@ impl World {
         if systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
-            // The bodies' contact moves nodes of any body: the guard makes its own pass.
-            for kernel in &mut self.kernels {
-                kernel.blocks.drop_maxima();
-            }
             let solvers = &self.solvers;
             let sub_stepped = |body: usize, node: usize| match solvers.get(body) {
                 Some(BodySolver::Multirate(m)) => m.carries_contact_forces_to(node),
@@ -1283,6 +1279,12 @@ impl World {
             counters.bodies.contacts = response.contacts;
             counters.bodies.contacts_dropped = response.contacts_dropped;
             counters.bodies.listed_pairs += response.listed_pairs;
+            // A body whose nodes the stage moved: the guard makes its own pass over it.
+            for (b, kernel) in self.kernels.iter_mut().enumerate() {
+                if scratch.moved(b) {
+                    kernel.blocks.drop_maxima();
+                }
+            }
         }
         clock.enter(Stage::Commit);
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {
