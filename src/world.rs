@@ -1118,11 +1118,7 @@ impl World {
             if hold {
                 broad.held.restore_velocities(&mut body.surface);
                 // Their velocities are not the node pass's: they join their blocks.
-                if kernel.blocks.bounds(body.node_count()).is_some() {
-                    for &i in broad.held.nodes() {
-                        kernel.blocks.include(&body.surface, i as usize);
-                    }
-                }
+                kernel.blocks.include_all(&body.surface, broad.held.nodes());
             }
             clock.enter(Stage::Contact);
             if systems.tool_contact {
@@ -1137,11 +1133,7 @@ impl World {
                 // The held nodes moved after the node pass: their trajectories join the boxes (a
                 // node released here ends where the node pass put it, the same operations, but the
                 // boxes must not rest on that).
-                if kernel.blocks.bounds(body.node_count()).is_some() {
-                    for &i in broad.held.nodes() {
-                        kernel.blocks.include(&body.surface, i as usize);
-                    }
-                }
+                kernel.blocks.include_all(&body.surface, broad.held.nodes());
             }
             clock.enter(Stage::Integration);
             match solver {
@@ -1198,11 +1190,7 @@ impl World {
                         capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
                     broad.held.add_captured(&body.surface, &broad.nodes);
                     // The captured nodes moved (to where they touched, carried with the tool).
-                    if blocks.is_some() {
-                        for &i in &broad.nodes {
-                            kernel.blocks.include(&body.surface, i as usize);
-                        }
-                    }
+                    kernel.blocks.include_all(&body.surface, &broad.nodes);
                 }
                 clock.enter(Stage::Subdivision);
                 if let Some(refinement) = refinement.as_mut() {

@@ -467,7 +467,7 @@ fn the_node_boxes_hold_every_free_trajectory_the_broad_phase_skips_by() {
         position = [0.05, 0.004, 0.003]
         velocity = [-4.0, 0.0, 0.0]
     "#;
-    let scene = palpa::scene::parse_scene(text, "thrown.toml", std::path::Path::new(".")).unwrap();
+    let scene = common::scene(text);
     let mut world = World::from_scene(&scene);
     world.node_box_check = Some(NodeBoxCheck::default());
     let mut collisions = 0;

@@ -108,6 +108,16 @@ impl NodeBlocks {
         }
     }
 
+    /// [`NodeBlocks::include`] each of `nodes`, while the boxes are valid (nothing to keep true
+    /// otherwise).
+    pub fn include_all(&mut self, surface: &Surface, nodes: &[u32]) {
+        if self.bounds_valid {
+            for &i in nodes {
+                self.include(surface, i as usize);
+            }
+        }
+    }
+
     /// Nodes were moved, added or removed without being included: no more use for this step.
     pub fn drop_all(&mut self) {
         self.bounds_valid = false;
