@@ -618,7 +618,8 @@ impl World {
                 .any(|o| o.friction > 0.0 || o.static_friction > 0.0),
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
             tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
-            body_contact: self.bodies.len() >= 2,
+            body_contact: self.bodies.len() >= 2
+                || self.bodies.iter().any(|b| b.params.self_contact_on()),
             subdivision: !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_some()),
             cutting: self
@@ -646,7 +647,8 @@ impl World {
             .map(|s| s.body.mesh_capacity().1)
             .max()
             .unwrap_or(0);
-        self.body_contact = (self.bodies.len() + self.spares.len() >= 2)
+        let self_contact = self.bodies.iter().any(|b| b.params.self_contact_on());
+        self.body_contact = (self.bodies.len() + self.spares.len() >= 2 || self_contact)
             .then(|| BodyContactScratch::new(&self.bodies, self.spares.len(), spare_triangles));
         self.refinements = self
             .bodies
@@ -884,7 +886,9 @@ impl World {
             self.origin.push(spare.origin);
             self.pieces_named.push(0);
         }
-        self.systems.body_contact = self.bodies.len() >= 2 && self.body_contact.is_some();
+        self.systems.body_contact = (self.bodies.len() >= 2
+            || self.bodies.iter().any(|b| b.params.self_contact_on()))
+            && self.body_contact.is_some();
     }
 
     /// Keeps the body–body response's candidate pairs from tick to tick while the bodies stay

@@ -46,6 +46,10 @@ pub struct BodyParams {
     /// When true the rigid component is held where the scene puts it (an organ attached to the
     /// abdominal wall); the surface still deforms around it.
     pub fixed: bool,
+    /// When true the body's surface may not pass through itself (its folds and pressed sheets
+    /// are stopped by the collision net, see `contact::self_pairs`). Not with cutting or tearing
+    /// (the scene refuses it; [`BodyParams::self_contact_on`] ignores it).
+    pub self_contact: bool,
     /// This body's integrator, when it differs from the world's.
     pub integrator: Option<Integrator>,
     /// Adaptive subdivision at tool contact, when on.
@@ -79,6 +83,15 @@ impl BodyParams {
     }
 }
 
+impl BodyParams {
+    /// Whether the body's self-contact is on: asked for, on a body that is neither cut nor torn
+    /// (the two sides of a cut start touching, which self-contact would take for a collision
+    /// every tick).
+    pub fn self_contact_on(&self) -> bool {
+        self.self_contact && self.cutting.is_none() && self.tearing.is_none()
+    }
+}
+
 impl Default for BodyParams {
     fn default() -> Self {
         Self {
@@ -91,6 +104,7 @@ impl Default for BodyParams {
             air_viscosity: 0.0,
             friction: 0.3,
             fixed: false,
+            self_contact: false,
             integrator: None,
             subdivision: None,
             cutting: None,

@@ -36,6 +36,7 @@ use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::obstacle::Obstacle;
 use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_segment_distance};
+use crate::contact::self_pairs::SelfPairs;
 use crate::contact::tool::NO_TOOL;
 
 /// Contact skin (m): a vertex that ends the tick within this distance of another body's face is in
@@ -384,6 +385,8 @@ pub struct BodyContactScratch {
     now: TriangleBoxes,
     /// The response's and the net's candidate pairs, listed again only where bodies moved.
     cache: CandidateCache,
+    /// The triangle pairs of each body with self-contact on.
+    self_pairs: SelfPairs,
     /// Each body's largest node displacement over the tick (m), at least.
     max_motion: Room<f64>,
     /// Per body and node, 1 + the last round of the collision net that answered a collision of
@@ -553,6 +556,7 @@ impl BodyContactScratch {
             tight_bounds: Room::with_capacity(count),
             now: TriangleBoxes::new(bodies, count, spare_triangles),
             cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
+            self_pairs: SelfPairs::new(bodies, spare),
             max_motion: Room::with_capacity(count),
             marked: vec![false; answered.len()],
             answered,
@@ -731,7 +735,7 @@ fn mark_moved(moved: &mut [bool], nodes: &[NodeRef; 4]) {
 fn test_primitive(
     bodies: &mut [Body],
     nodes: [NodeRef; 4],
-    (vertex_face, max_motion): (bool, &[f64]),
+    (vertex_face, most, common): (bool, f64, &Vec3),
     settings: &CcdSettings,
     freeze: bool,
     dt: f64,
@@ -747,7 +751,6 @@ fn test_primitive(
         (s[2] - s[0], (s[1] - s[0]).cross(&(s[3] - s[2])))
     };
     let along = offset.dot(&across);
-    let most = max_motion[nodes[0].body] + max_motion[nodes[3].body] + FILTER_MARGIN;
     if along * along > most * most * across.norm_squared() * (1.0 + BOUND_ROUNDING) {
         return false;
     }
@@ -757,7 +760,7 @@ fn test_primitive(
     // the search for resting contacts the response keeps apart. The same bound first on the
     // plane's (lines') distance, with no closest points: a body whose nodes move fast in one place
     // (a light organ under a heavy one) leaves the bodies' bound above loose everywhere else.
-    let motion = [0, 1, 2, 3].map(|k| (e[k] - s[k]).norm());
+    let motion = [0, 1, 2, 3].map(|k| (e[k] - s[k] - common).norm());
     let reach = if vertex_face {
         motion[0] + motion[1].max(motion[2]).max(motion[3])
     } else {
@@ -800,7 +803,17 @@ fn test_primitive(
     // velocity, two bodies colliding head-on at 2 m/s each way, in zero gravity, came apart with
     // their total momentum reversed: the net stopped the heavy organ's nodes as often as the
     // light one's.)
-    let together = mean_velocity(bodies, &nodes);
+    // Four nodes of one body (its self-contact) take the velocities of their own shortened
+    // displacements: the body's momentum is not at stake between its own nodes, and a velocity
+    // left unchanged by a displacement the stop cut short is work the springs do with no motion.
+    // (With the mean velocity, the shipped liver's folds, held by the net at every tick, gained
+    // 1.2 J in 25 ticks, until the guard restored it.)
+    let own = nodes.iter().all(|r| r.body == nodes[0].body);
+    let together = if own {
+        None
+    } else {
+        mean_velocity(bodies, &nodes)
+    };
     for r in nodes {
         stop_at(bodies, r, fraction, together, dt);
     }
@@ -839,6 +852,24 @@ fn worth_testing(
         || nodes
             .iter()
             .any(|r| answered[r.body][r.node] as usize >= round)
+}
+
+/// [`worth_testing`] for every primitive pair of two triangles of one body at once (`answered`:
+/// that body's marks): false when none of their nodes was answered in the round before or in this
+/// one so far.
+fn worth_testing_pair(
+    answered: &[u32],
+    [a, b]: [[u32; 3]; 2],
+    round: usize,
+    skipping: bool,
+) -> bool {
+    round == 0
+        || !skipping
+        || a.iter().chain(&b).any(|&v| {
+            answered
+                .get(v as usize)
+                .is_none_or(|&m| m as usize >= round)
+        })
 }
 
 /// Records that `round` answered a collision of `nodes` (when `hit`; whether or not it could move
@@ -887,7 +918,9 @@ pub fn resolve_body_collisions(
         }
     }
     let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
-    if prepared == Prepared::NoneNear {
+    // Bodies whose surface may not pass through itself, tested whether or not another is near.
+    let self_on = (0..bodies.len()).any(|k| SelfPairs::on(bodies, k));
+    if prepared == Prepared::NoneNear && !self_on {
         return counters;
     }
     let mut skipping = false;
@@ -907,7 +940,7 @@ pub fn resolve_body_collisions(
             } else {
                 scratch.find_bounds(bodies, group)
             };
-            if !any {
+            if !any && !self_on {
                 break;
             }
             // Room to follow which nodes' collisions the rounds answer (else every round tests
@@ -916,7 +949,7 @@ pub fn resolve_body_collisions(
             // (`near` has an entry per body there is; `answered` also has room for the pieces
             // transections and tears may make.)
             for (k, answered) in scratch.answered.iter_mut().enumerate() {
-                if scratch.near.get(k) == Some(&true) {
+                if scratch.near.get(k) == Some(&true) || SelfPairs::on(bodies, k) {
                     answered.clear();
                     let n = bodies[k].node_count();
                     if n <= answered.capacity() {
@@ -1012,106 +1045,69 @@ pub fn resolve_body_collisions(
                 let most = scratch.max_motion[i] + scratch.max_motion[j] + FILTER_MARGIN;
                 for k in 0..scratch.pairs.len() {
                     let (ta, tb) = scratch.pairs[k];
-                    let fa = bodies[i].surface.triangles[ta as usize].map(|v| NodeRef {
-                        body: i,
-                        node: v as usize,
-                    });
-                    let fb = bodies[j].surface.triangles[tb as usize].map(|v| NodeRef {
-                        body: j,
-                        node: v as usize,
-                    });
-                    let starts = |f: [NodeRef; 3]| f.map(|r| start_of(bodies, r));
-                    let (sa, sb) = (starts(fa), starts(fb));
-                    if triangles_apart(&sa, &sb, most) {
-                        continue;
-                    }
-                    // Again with what these six nodes move (a body that moves fast in one place
-                    // leaves the bodies' bound loose everywhere else).
-                    let moved = |f: [NodeRef; 3], s: &[Vec3; 3]| {
-                        (0..3)
-                            .map(|c| (end_of(bodies, f[c]) - s[c]).norm_squared())
-                            .fold(0.0, f64::max)
-                            .sqrt()
-                    };
-                    let local = moved(fa, &sa) + moved(fb, &sb) + FILTER_MARGIN;
-                    if local < most && triangles_apart(&sa, &sb, local) {
-                        continue;
-                    }
-                    // Each vertex and side through the one triangle that owns it: every
-                    // vertex–face and edge–edge pair is tested once.
-                    let (oa, ob) = (
-                        scratch.bvhs[i].owned(ta as usize),
-                        scratch.bvhs[j].owned(tb as usize),
+                    answered += test_triangle_pair(
+                        bodies,
+                        scratch,
+                        [(i, ta), (j, tb)],
+                        (most, Vec3::zeros()),
+                        (round, skipping, freeze || !complete, false),
+                        dt,
                     );
-                    let overflow_freeze = freeze || !complete;
-                    for (vertices, owned, face) in [(fa, oa, fb), (fb, ob, fa)] {
-                        for (c, v) in vertices.into_iter().enumerate() {
-                            if owned & owns_vertex(c) == 0 {
-                                continue;
-                            }
-                            let nodes = [v, face[0], face[1], face[2]];
-                            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
-                                continue;
-                            }
-                            let hit = test_primitive(
-                                bodies,
-                                nodes,
-                                (true, &scratch.max_motion),
-                                &scratch.settings,
-                                overflow_freeze,
-                                dt,
-                            );
-                            if hit {
-                                mark_moved(&mut scratch.moved, &nodes);
-                                remember(
-                                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
-                                    Remembered::of(nodes, true, f64::INFINITY),
-                                );
-                            }
-                            answered += mark_answered(
-                                (&mut scratch.answered, &mut scratch.marked),
-                                &nodes,
-                                round,
-                                hit,
-                            );
-                        }
-                    }
-                    for ea in 0..3 {
-                        if oa & owns_side(ea) == 0 {
-                            continue;
-                        }
-                        for eb in 0..3 {
-                            if ob & owns_side(eb) == 0 {
-                                continue;
-                            }
-                            let nodes = [fa[ea], fa[(ea + 1) % 3], fb[eb], fb[(eb + 1) % 3]];
-                            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
-                                continue;
-                            }
-                            let hit = test_primitive(
-                                bodies,
-                                nodes,
-                                (false, &scratch.max_motion),
-                                &scratch.settings,
-                                overflow_freeze,
-                                dt,
-                            );
-                            if hit {
-                                mark_moved(&mut scratch.moved, &nodes);
-                                remember(
-                                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
-                                    Remembered::of(nodes, false, f64::INFINITY),
-                                );
-                            }
-                            answered += mark_answered(
-                                (&mut scratch.answered, &mut scratch.marked),
-                                &nodes,
-                                round,
-                                hit,
-                            );
-                        }
-                    }
                 }
+            }
+        }
+        // Each body with self-contact on against itself: its pairs (listed again at the first
+        // round where its nodes left their slack) whose boxes meet this round.
+        for k in 0..bodies.len() {
+            if !self_on || !SelfPairs::on(bodies, k) {
+                continue;
+            }
+            if round == 0 {
+                if !scratch
+                    .self_pairs
+                    .update(k, &bodies[k], &mut scratch.bvhs[k])
+                {
+                    counters.overflows += 1;
+                }
+            } else {
+                scratch
+                    .self_pairs
+                    .bend_again(k, &bodies[k], &scratch.answered[k], round);
+            }
+            let complete = scratch.self_pairs.complete(k);
+            let far = scratch.self_pairs.pairs(k).len();
+            for p in 0..far + scratch.self_pairs.bent(k).len() {
+                let (ta, tb) = if p < far {
+                    scratch.self_pairs.pairs(k)[p]
+                } else {
+                    scratch.self_pairs.bent(k)[p - far]
+                };
+                // After the first round, a pair none of whose nodes moved since the round before
+                // is passed over (each of its tests would be: see `worth_testing`).
+                let triangles = &bodies[k].surface.triangles;
+                let (a, b) = (triangles[ta as usize], triangles[tb as usize]);
+                if !worth_testing_pair(&scratch.answered[k], [a, b], round, skipping) {
+                    continue;
+                }
+                let box_a = scratch.now.of(k, ta as usize, &bodies[k]);
+                if !box_a.overlaps(&scratch.now.of(k, tb as usize, &bodies[k])) {
+                    continue;
+                }
+                counters.candidate_pairs += 1;
+                // What the two may close by: twice the most either's nodes move apart from the
+                // body's nodes' mean (a body falling or sliding as a whole closes nothing).
+                let nodes = [a[0], a[1], a[2], b[0], b[1], b[2]];
+                let motion = scratch.self_pairs.relative_motion(k, &bodies[k], &nodes);
+                // A bent near pair tests every vertex and side of its two triangles, not only
+                // those each owns: the pairs that own them may not be bent.
+                answered += test_triangle_pair(
+                    bodies,
+                    scratch,
+                    [(k, ta), (k, tb)],
+                    (2.0 * motion + FILTER_MARGIN, scratch.self_pairs.shift(k)),
+                    (round, skipping, freeze || !complete, p >= far),
+                    dt,
+                );
             }
         }
         counters.collisions += answered;
@@ -1123,6 +1119,133 @@ pub fn resolve_body_collisions(
         }
     }
     counters
+}
+
+/// Tests triangle `ta` of body `i` against `tb` of body `j` (`i` may be `j`: two triangles of one
+/// body with no node in common): each vertex against the other's face and each side against the
+/// other's sides, through the one triangle that owns it, after the filters on their start
+/// distance against `most` (m: what the two may close by over the tick) and their own nodes'
+/// motion. What collides stops short (or is frozen, with `freeze`); returns how many collisions
+/// it answered.
+fn test_triangle_pair(
+    bodies: &mut [Body],
+    scratch: &mut BodyContactScratch,
+    [(i, ta), (j, tb)]: [(usize, u32); 2],
+    (most, common): (f64, Vec3),
+    (round, skipping, overflow_freeze, every): (usize, bool, bool, bool),
+    dt: f64,
+) -> u32 {
+    let mut answered = 0;
+    let fa = bodies[i].surface.triangles[ta as usize].map(|v| NodeRef {
+        body: i,
+        node: v as usize,
+    });
+    let fb = bodies[j].surface.triangles[tb as usize].map(|v| NodeRef {
+        body: j,
+        node: v as usize,
+    });
+    let starts = |f: [NodeRef; 3]| f.map(|r| start_of(bodies, r));
+    let (sa, sb) = (starts(fa), starts(fb));
+    if triangles_apart(&sa, &sb, most) {
+        return 0;
+    }
+    // Again with what these six nodes move (a body that moves fast in one place
+    // leaves the bodies' bound loose everywhere else).
+    let moved = |f: [NodeRef; 3], s: &[Vec3; 3]| {
+        (0..3)
+            .map(|c| (end_of(bodies, f[c]) - s[c] - common).norm_squared())
+            .fold(0.0, f64::max)
+            .sqrt()
+    };
+    let local = moved(fa, &sa) + moved(fb, &sb) + FILTER_MARGIN;
+    if local < most && triangles_apart(&sa, &sb, local) {
+        return 0;
+    }
+    // Each vertex and side through the one triangle that owns it: every
+    // vertex–face and edge–edge pair is tested once.
+    let (oa, ob) = if every {
+        (u8::MAX, u8::MAX)
+    } else {
+        (
+            scratch.bvhs[i].owned(ta as usize),
+            scratch.bvhs[j].owned(tb as usize),
+        )
+    };
+    for (vertices, owned, face) in [(fa, oa, fb), (fb, ob, fa)] {
+        for (c, v) in vertices.into_iter().enumerate() {
+            if owned & owns_vertex(c) == 0 {
+                continue;
+            }
+            let nodes = [v, face[0], face[1], face[2]];
+            if face.contains(&v) {
+                continue;
+            }
+            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+                continue;
+            }
+            let hit = test_primitive(
+                bodies,
+                nodes,
+                (true, most, &common),
+                &scratch.settings,
+                overflow_freeze,
+                dt,
+            );
+            if hit {
+                mark_moved(&mut scratch.moved, &nodes);
+                remember(
+                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
+                    Remembered::of(nodes, true, f64::INFINITY),
+                );
+            }
+            answered += mark_answered(
+                (&mut scratch.answered, &mut scratch.marked),
+                &nodes,
+                round,
+                hit,
+            );
+        }
+    }
+    for ea in 0..3 {
+        if oa & owns_side(ea) == 0 {
+            continue;
+        }
+        for eb in 0..3 {
+            if ob & owns_side(eb) == 0 {
+                continue;
+            }
+            let nodes = [fa[ea], fa[(ea + 1) % 3], fb[eb], fb[(eb + 1) % 3]];
+            if nodes[..2].iter().any(|r| nodes[2..].contains(r)) {
+                continue;
+            }
+            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+                continue;
+            }
+            let hit = test_primitive(
+                bodies,
+                nodes,
+                (false, most, &common),
+                &scratch.settings,
+                overflow_freeze,
+                dt,
+            );
+            if hit {
+                mark_moved(&mut scratch.moved, &nodes);
+                remember(
+                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
+                    Remembered::of(nodes, false, f64::INFINITY),
+                );
+            }
+            answered += mark_answered(
+                (&mut scratch.answered, &mut scratch.marked),
+                &nodes,
+                round,
+                hit,
+            );
+        }
+    }
+
+    answered
 }
 
 /// Barycentric weights of `q` (a point of the triangle's plane) in triangle (a, b, c).

@@ -4,4 +4,5 @@
 pub mod bodies;
 pub mod obstacle;
 pub mod overlap;
+mod self_pairs;
 pub mod tool;

@@ -846,6 +846,10 @@ impl Ctx<'_> {
                 Rule::NonNegative,
             )?,
             fixed: b.fixed.unwrap_or(d.fixed),
+            self_contact: b
+                .self_contact
+                .as_ref()
+                .map_or(d.self_contact, |v| *v.get_ref()),
             integrator: match &b.integrator {
                 None => None,
                 Some(v) => Some(self.integrator(Some(v), world.integrator)?),
@@ -867,6 +871,17 @@ impl Ctx<'_> {
                 Some(v) => self.tearing(v)?,
             },
         };
+        if let Some(v) = &b.self_contact
+            && *v.get_ref()
+            && (params.cutting.is_some() || params.tearing.is_some())
+        {
+            return Err(self.error(
+                v.span(),
+                "`self_contact` cannot be combined with `cutting` or `tearing` yet (the two \
+                 sides of a cut start touching; see the README, Self-contact)"
+                    .to_string(),
+            ));
+        }
         let placement = Placement {
             position_in_world: self.vector(b.position.as_ref(), Vec3::zeros(), "position")?,
             world_from_body: self.orientation(b.orientation.as_ref(), "orientation")?,

@@ -57,6 +57,7 @@ pub(super) struct BodySection {
     pub air_viscosity: Option<Spanned<f64>>,
     pub friction: Option<Spanned<f64>>,
     pub fixed: Option<bool>,
+    pub self_contact: Option<Spanned<bool>>,
     pub integrator: Option<Spanned<String>>,
     pub subdivision: Option<Spanned<SubdivisionSection>>,
     pub cutting: Option<Spanned<CuttingSection>>,

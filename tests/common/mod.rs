@@ -411,3 +411,35 @@ pub fn laparoscopy_with_demo_tools(seconds: f64) -> Scene {
     }
     scene
 }
+
+/// Pairs (edge, triangle) of one body where the edge crosses the triangle and has no node in it:
+/// the body's surface passes through itself (two triangles that cross have such a pair, also
+/// when they share a node: the side facing that node crosses the other).
+pub fn self_crossings(body: &palpa::body::Body) -> usize {
+    let x = &body.surface.position_in_world;
+    let triangles = &body.surface.triangles;
+    let boxes: Vec<(palpa::Vec3, palpa::Vec3)> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| x[v as usize]);
+            (a.inf(&b).inf(&c), a.sup(&b).sup(&c))
+        })
+        .collect();
+    let mut count = 0;
+    for k in 0..body.edges.len() {
+        let (ea, eb) = (body.edges.a[k], body.edges.b[k]);
+        let (p, q) = (x[ea as usize], x[eb as usize]);
+        let (lo, hi) = (p.inf(&q), p.sup(&q));
+        for (t, (tlo, thi)) in triangles.iter().zip(&boxes) {
+            if t.contains(&ea)
+                || t.contains(&eb)
+                || (0..3).any(|d| lo[d] > thi[d] || tlo[d] > hi[d])
+            {
+                continue;
+            }
+            let [a, b, c] = t.map(|v| x[v as usize]);
+            count += usize::from(segment_crosses_triangle(&p, &q, &a, &b, &c));
+        }
+    }
+    count
+}

@@ -1,0 +1,627 @@
+//! The triangle pairs of one body that may meet over a tick, for its self-contact (the body's
+//! `self_contact` key): a soft organ pressed, dropped or folded must not pass through itself, as it
+//! may not pass through another.
+//!
+//! Two kinds of pairs, found in two ways:
+//!
+//! - **Far pairs**, triangles with no node within one edge of the other's: listed when their boxes,
+//!   in the body's *centred* frame (positions less the nodes' mean), lie within the slack of each
+//!   other. A body that falls, slides or turns slowly keeps its list: only its deformation leaves
+//!   the slack. Each tick checks that every node's centred start and end lie within
+//!   [`SELF_SLACK`] of its box at the listing (then every point of its trajectory does: the
+//!   centred position along a straight trajectory is the same blend of the two, and a box grown by
+//!   the slack is convex), so that a pair not listed cannot meet; else the body lists again. The
+//!   smooth organs of the shipped scenes list no far pair at rest.
+//! - **Near pairs**, triangles that share a node or have nodes one edge apart: always beside each
+//!   other, so their boxes tell nothing. They are listed from the topology alone (again when it
+//!   changes), and a tick tests those that are *bent* towards each other: whose normals, at the
+//!   tick's start or at its end, lie more than [`BEND`] apart. A surface creases, and its sheets
+//!   fold onto each other, only by bending the faces of the crease through large angles; faces
+//!   that stay near parallel lie beside each other on a smooth patch and cannot meet anywhere but
+//!   at the nodes they share (a normal-cone argument, as cloth simulators cull self-collisions;
+//!   it is a criterion, not a proof: a fan of faces crumpled around one node with every pair
+//!   within [`BEND`] is not tested). Of a near pair, the vertex–face and edge–edge pairs that
+//!   share a node are never tested (they meet at that node by construction).
+
+use crate::Room;
+use crate::Vec3;
+use crate::body::Body;
+use crate::collision::bvh::TriangleBvh;
+use crate::collision::tool::Aabb;
+
+/// How far a node's centred position may leave its box at the listing before the body lists its
+/// far pairs again (m).
+pub(super) const SELF_SLACK: f64 = 1e-3;
+
+/// The angle between two near triangles' normals (rad) beyond which a tick tests them: 60°.
+pub(super) const BEND: f64 = std::f64::consts::FRAC_PI_3;
+
+/// A near pair one of whose triangles lies on one side of the other's plane by more than this many
+/// times its nodes' largest motion relative to the body, plus [`RIDGE_MARGIN`], is not tested (see
+/// [`bend`]).
+const RIDGE_REACH: f64 = 8.0;
+
+/// The least distance (m) from the other's plane of a near pair not tested.
+const RIDGE_MARGIN: f64 = 1e-5;
+
+/// Most far pairs a body lists per triangle it may have.
+const PAIRS_PER_TRIANGLE: usize = 32;
+
+/// Most near pairs a body lists per triangle it may have (a triangle of a mesh whose nodes have
+/// six neighbours has 36 near triangles, each pair listed once: 18).
+const NEAR_PER_TRIANGLE: usize = 32;
+
+/// One body's self-contact state.
+#[derive(Clone, Debug)]
+struct SelfBody {
+    /// The topology (version, node count, triangle count) the adjacency and lists are for.
+    topology: Option<(u64, usize, usize)>,
+    /// Each node's neighbours (one edge away), as offsets into `neighbours`.
+    offsets: Room<u32>,
+    neighbours: Room<u32>,
+    /// Each node's triangles, as offsets into `incident`.
+    incident_offsets: Room<u32>,
+    incident: Room<u32>,
+    /// Per triangle, the last triangle whose near pairs it was counted in, plus one.
+    stamp: Room<u32>,
+    /// The near pairs (first triangle below the second) and whether they are all there.
+    near: Room<(u32, u32)>,
+    near_complete: bool,
+    /// This tick's bent near pairs.
+    bent: Room<(u32, u32)>,
+    /// Per node, its displacement over the tick relative to the body's nodes' mean (m).
+    motion: Room<f64>,
+    /// Per near pair, whether it is in `bent`.
+    is_bent: Room<bool>,
+    /// Per triangle, `touch_mark` when a node of it moved in the net's last round.
+    touched: Room<u32>,
+    touch_mark: u32,
+    /// Per triangle, its unit normal at the tick's start and at its end.
+    normals: Room<[Vec3; 2]>,
+    /// Per node, its centred box at the listing (lower and upper corners).
+    lower: Room<Vec3>,
+    upper: Room<Vec3>,
+    /// The far pairs (first triangle below the second) and whether they are all there.
+    pairs: Room<(u32, u32)>,
+    complete: bool,
+    /// Whether a listing holds (false: list again this tick).
+    listed: bool,
+    /// The nodes' mean at the start and the end of this tick.
+    centre: [Vec3; 2],
+}
+
+/// Every body's self-contact state (room for the bodies yet to come too).
+#[derive(Clone, Debug)]
+pub(super) struct SelfPairs {
+    bodies: Vec<SelfBody>,
+    found: Room<u32>,
+}
+
+impl SelfPairs {
+    /// Room for `bodies` (and none for `spare` bodies yet to come: the pieces of a cut, which has
+    /// no self-contact). Bodies without self-contact get no room.
+    pub(super) fn new(bodies: &[Body], spare: usize) -> Self {
+        let room = |nodes: usize, triangles: usize, edges: usize| SelfBody {
+            topology: None,
+            offsets: Room::with_capacity(nodes + 1),
+            neighbours: Room::with_capacity(2 * edges),
+            incident_offsets: Room::with_capacity(nodes + 1),
+            incident: Room::with_capacity(3 * triangles),
+            stamp: Room::with_capacity(triangles),
+            near: Room::with_capacity(NEAR_PER_TRIANGLE * triangles),
+            near_complete: true,
+            bent: Room::with_capacity(NEAR_PER_TRIANGLE * triangles),
+            normals: Room::with_capacity(triangles),
+            is_bent: Room::with_capacity(NEAR_PER_TRIANGLE * triangles),
+            touched: Room::with_capacity(triangles),
+            touch_mark: 0,
+            motion: Room::with_capacity(nodes),
+            lower: Room::with_capacity(nodes),
+            upper: Room::with_capacity(nodes),
+            pairs: Room::with_capacity(PAIRS_PER_TRIANGLE * triangles),
+            complete: true,
+            listed: false,
+            centre: [Vec3::zeros(); 2],
+        };
+        let on = |b: &&Body| b.params.self_contact_on();
+        let most_triangles = bodies
+            .iter()
+            .filter(on)
+            .map(|b| b.mesh_capacity().1)
+            .max()
+            .unwrap_or(0);
+        Self {
+            bodies: bodies
+                .iter()
+                .map(|b| {
+                    if !b.params.self_contact_on() {
+                        return room(0, 0, 0);
+                    }
+                    let (nodes, triangles) = b.mesh_capacity();
+                    let nodes = nodes.max(b.node_count());
+                    room(nodes, triangles, 3 * triangles)
+                })
+                // (Pieces come only from bodies cut or torn, which have no self-contact.)
+                .chain((0..spare).map(|_| room(0, 0, 0)))
+                .collect(),
+            found: Room::with_capacity(most_triangles),
+        }
+    }
+
+    /// Whether body `k` has its self-contact on.
+    pub(super) fn on(bodies: &[Body], k: usize) -> bool {
+        bodies.get(k).is_some_and(|b| b.params.self_contact_on())
+    }
+
+    /// Brings body `k`'s pairs up to date for this tick (its adjacency and near pairs when its
+    /// topology changed; a new far listing when a node left its slack; the bent near pairs), with
+    /// its hierarchy `bvh`; returns false when a list is not complete (a list was full: the pairs
+    /// beyond it are not tested).
+    pub(super) fn update(&mut self, k: usize, body: &Body, bvh: &mut TriangleBvh) -> bool {
+        let Some(state) = self.bodies.get_mut(k) else {
+            return false;
+        };
+        let s = &body.surface;
+        let n = s.position_in_world.len();
+        let topology = Some((body.topology_version, n, s.triangles.len()));
+        if state.topology != topology {
+            state.topology = topology;
+            state.listed = false;
+            adjacency(body, state);
+            near_pairs(body, state);
+        }
+        let near_complete = state.near_complete;
+        let mean = |p: &[Vec3]| p.iter().fold(Vec3::zeros(), |sum, x| sum + x) / n.max(1) as f64;
+        state.centre = [mean(&s.position_in_world), mean(&s.next_position_in_world)];
+        let [c0, c1] = state.centre;
+        motion_and_bend(body, state);
+        if state.listed && state.lower.len() == n {
+            let within = |p: &Vec3, lo: &Vec3, hi: &Vec3| {
+                (0..3).all(|d| p[d] >= lo[d] - SELF_SLACK && p[d] <= hi[d] + SELF_SLACK)
+            };
+            let holds = (0..n).all(|v| {
+                within(
+                    &(s.position_in_world[v] - c0),
+                    &state.lower[v],
+                    &state.upper[v],
+                ) && within(
+                    &(s.next_position_in_world[v] - c1),
+                    &state.lower[v],
+                    &state.upper[v],
+                )
+            });
+            if holds {
+                return state.complete && near_complete;
+            }
+        }
+        // A new listing: the centred boxes of this tick's trajectories, and the triangle pairs
+        // whose boxes grown by the slack meet, found in the hierarchy refitted to them.
+        state.lower.clear();
+        state.upper.clear();
+        state.pairs.clear();
+        if n > state.lower.capacity() || state.offsets.len() != n + 1 {
+            state.complete = false;
+            state.listed = false;
+            return false;
+        }
+        for v in 0..n {
+            let (a, b) = (
+                s.position_in_world[v] - c0,
+                s.next_position_in_world[v] - c1,
+            );
+            state.lower.push(a.inf(&b));
+            state.upper.push(a.sup(&b));
+        }
+        if !bvh.is_built_for(body.topology_version, s.triangles.len()) {
+            bvh.rebuild(&s.triangles, &s.position_in_world);
+            bvh.set_built_version(body.topology_version);
+        }
+        bvh.refit(&s.triangles, &state.lower, &state.upper, SELF_SLACK);
+        state.complete = true;
+        state.listed = true;
+        for (ta, corners) in s.triangles.iter().enumerate() {
+            let mut aabb = Aabb::empty();
+            for &c in corners {
+                aabb.include(&state.lower[c as usize]);
+                aabb.include(&state.upper[c as usize]);
+            }
+            aabb.inflate(SELF_SLACK);
+            self.found.clear();
+            state.complete &= bvh.query(&aabb, &mut self.found);
+            for &tb in self.found.iter() {
+                if tb as usize <= ta || near_in_mesh(state, corners, &s.triangles[tb as usize]) {
+                    continue;
+                }
+                if state.pairs.len() == state.pairs.capacity() {
+                    state.complete = false;
+                    break;
+                }
+                state.pairs.push((ta as u32, tb));
+            }
+        }
+        // A list not complete is made again next tick.
+        state.listed = state.complete;
+        state.complete && near_complete
+    }
+
+    /// Body `k`'s bent near pairs found again with the trajectories the net's round before
+    /// shortened (stopping some nodes of a triangle and not others can turn it over).
+    /// `answered` holds each node's mark of the last round that answered a collision of it, plus
+    /// one; `round` is this round.
+    pub(super) fn bend_again(&mut self, k: usize, body: &Body, answered: &[u32], round: usize) {
+        if let Some(state) = self.bodies.get_mut(k) {
+            bend_moved(body, state, answered, round);
+        }
+    }
+
+    /// Whether body `k`'s lists hold every pair that may meet.
+    pub(super) fn complete(&self, k: usize) -> bool {
+        self.bodies
+            .get(k)
+            .is_some_and(|b| b.complete && b.near_complete)
+    }
+
+    /// Body `k`'s far pairs.
+    pub(super) fn pairs(&self, k: usize) -> &[(u32, u32)] {
+        self.bodies.get(k).map_or(&[], |b| &b.pairs[..])
+    }
+
+    /// Body `k`'s near pairs bent beyond [`BEND`] this tick.
+    pub(super) fn bent(&self, k: usize) -> &[(u32, u32)] {
+        self.bodies.get(k).map_or(&[], |b| &b.bent[..])
+    }
+
+    /// Body `k`'s near pairs (all of them, bent or not).
+    #[cfg(test)]
+    fn near(&self, k: usize) -> &[(u32, u32)] {
+        self.bodies.get(k).map_or(&[], |b| &b.near[..])
+    }
+
+    /// Body `k`'s nodes' mean displacement over the tick (as it began; m).
+    pub(super) fn shift(&self, k: usize) -> Vec3 {
+        self.bodies
+            .get(k)
+            .map_or(Vec3::zeros(), |b| b.centre[1] - b.centre[0])
+    }
+
+    /// How far the nodes `nodes` of body `k` (`body`) move over the tick relative to the body's
+    /// nodes' mean, at most (m).
+    pub(super) fn relative_motion(&self, k: usize, body: &Body, nodes: &[u32]) -> f64 {
+        let Some(state) = self.bodies.get(k) else {
+            return f64::INFINITY;
+        };
+        let shift = state.centre[1] - state.centre[0];
+        let s = &body.surface;
+        nodes
+            .iter()
+            .map(|&v| {
+                let v = v as usize;
+                (s.next_position_in_world[v] - s.position_in_world[v] - shift).norm_squared()
+            })
+            .fold(0.0, f64::max)
+            .sqrt()
+    }
+}
+
+/// Whether triangles `a` and `b` share a node or have nodes one edge apart.
+fn near_in_mesh(state: &SelfBody, a: &[u32; 3], b: &[u32; 3]) -> bool {
+    a.iter().any(|&v| {
+        b.contains(&v) || {
+            let (from, to) = (
+                state.offsets[v as usize] as usize,
+                state.offsets[v as usize + 1] as usize,
+            );
+            state.neighbours[from..to].iter().any(|w| b.contains(w))
+        }
+    })
+}
+
+/// Compressed lists `(offsets, items)` of `n` keys from `pairs` (key, item), in the pairs' order;
+/// false (the lists left empty) when they do not fit their room.
+fn compressed(
+    n: usize,
+    pairs: impl Iterator<Item = (u32, u32)> + Clone,
+    offsets: &mut Room<u32>,
+    items: &mut Room<u32>,
+) -> bool {
+    offsets.clear();
+    items.clear();
+    let count = pairs.clone().filter(|&(key, _)| (key as usize) < n).count();
+    if n + 1 > offsets.capacity() || count > items.capacity() {
+        return false;
+    }
+    offsets.resize(n + 1, 0);
+    for (key, _) in pairs.clone() {
+        if (key as usize) < n {
+            offsets[key as usize + 1] += 1;
+        }
+    }
+    for v in 0..n {
+        offsets[v + 1] += offsets[v];
+    }
+    items.resize(count, 0);
+    // Each key's run from its offset: a cursor per key kept in the offsets themselves (each ends
+    // at the next key's start, shifted back afterwards).
+    for (key, item) in pairs {
+        let key = key as usize;
+        if key < n {
+            let slot = offsets[key] as usize;
+            items[slot] = item;
+            offsets[key] += 1;
+        }
+    }
+    for v in (1..=n).rev() {
+        offsets[v] = offsets[v - 1];
+    }
+    offsets[0] = 0;
+    true
+}
+
+/// Each node's neighbours from the body's edges, and each node's triangles (none for a body with
+/// more than the room).
+fn adjacency(body: &Body, state: &mut SelfBody) {
+    let n = body.node_count();
+    let edges = &body.edges;
+    let both_ways = edges
+        .a
+        .iter()
+        .zip(&edges.b)
+        .filter(|&(&a, &b)| (a as usize) < n && (b as usize) < n)
+        .flat_map(|(&a, &b)| [(a, b), (b, a)]);
+    compressed(n, both_ways, &mut state.offsets, &mut state.neighbours);
+    let triangles = &body.surface.triangles;
+    let corners = triangles
+        .iter()
+        .enumerate()
+        .flat_map(|(t, c)| c.map(|v| (v, t as u32)));
+    compressed(n, corners, &mut state.incident_offsets, &mut state.incident);
+}
+
+/// Lists the body's near pairs: each triangle with every later one that shares a node with it or
+/// has a node one edge from one of its own.
+fn near_pairs(body: &Body, state: &mut SelfBody) {
+    let n = body.node_count();
+    let triangles = &body.surface.triangles;
+    state.near.clear();
+    state.stamp.clear();
+    state.near_complete = state.offsets.len() == n + 1
+        && state.incident_offsets.len() == n + 1
+        && triangles.len() <= state.stamp.capacity();
+    if !state.near_complete {
+        return;
+    }
+    state.stamp.resize(triangles.len(), 0);
+    state.touched.clear();
+    state.touched.resize(triangles.len(), 0);
+    let SelfBody {
+        offsets,
+        neighbours,
+        incident_offsets,
+        incident,
+        stamp,
+        near,
+        near_complete,
+        ..
+    } = state;
+    let run = |offsets: &Room<u32>, v: u32| {
+        offsets[v as usize] as usize..offsets[v as usize + 1] as usize
+    };
+    for (ta, corners) in triangles.iter().enumerate() {
+        let mark = ta as u32 + 1;
+        for &c in corners {
+            let ring = neighbours[run(offsets, c)].iter();
+            for &v in std::iter::once(&c).chain(ring) {
+                for &tb in &incident[run(incident_offsets, v)] {
+                    if tb as usize <= ta || stamp[tb as usize] == mark {
+                        continue;
+                    }
+                    stamp[tb as usize] = mark;
+                    if near.len() == near.capacity() {
+                        *near_complete = false;
+                        return;
+                    }
+                    near.push((ta as u32, tb));
+                }
+            }
+        }
+    }
+}
+
+/// A node's displacement over the tick relative to the body's nodes' mean displacement (as the
+/// tick began; `shift`).
+fn relative_displacement(body: &Body, v: usize, shift: &Vec3) -> f64 {
+    let s = &body.surface;
+    (s.next_position_in_world[v] - s.position_in_world[v] - shift).norm()
+}
+
+/// A triangle's unit normal with the positions `x` (zero for a triangle with no area).
+fn unit_normal(x: &[Vec3], t: &[u32; 3]) -> Vec3 {
+    let [a, b, c] = t.map(|v| x[v as usize]);
+    (b - a)
+        .cross(&(c - a))
+        .try_normalize(0.0)
+        .unwrap_or_else(Vec3::zeros)
+}
+
+/// Each node's relative displacement, each triangle's normals, and the bent near pairs (see
+/// [`bent`]), for the whole body.
+fn motion_and_bend(body: &Body, state: &mut SelfBody) {
+    let s = &body.surface;
+    let n = s.position_in_world.len();
+    let shift = state.centre[1] - state.centre[0];
+    state.motion.clear();
+    state.normals.clear();
+    state.bent.clear();
+    state.is_bent.clear();
+    if n > state.motion.capacity()
+        || s.triangles.len() > state.normals.capacity()
+        || state.near.len() > state.is_bent.capacity()
+    {
+        state.near_complete = false;
+        return;
+    }
+    state
+        .motion
+        .extend((0..n).map(|v| relative_displacement(body, v, &shift)));
+    state.normals.extend(s.triangles.iter().map(|t| {
+        [
+            unit_normal(&s.position_in_world, t),
+            unit_normal(&s.next_position_in_world, t),
+        ]
+    }));
+    for p in 0..state.near.len() {
+        let (ta, tb) = state.near[p];
+        let yes = bent(body, state, ta, tb);
+        state.is_bent.push(yes);
+        if yes {
+            // (Both lists have the same room; the bent are some of the near.)
+            state.bent.push((ta, tb));
+        }
+    }
+}
+
+/// After a round of the net moved the nodes whose mark in `answered` is `round` or more: their
+/// relative displacements and their triangles' normals at the end again, and the near pairs of
+/// those triangles that are bent now added to the bent (a pair bent earlier in the tick stays).
+fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize) {
+    let s = &body.surface;
+    let n = s.position_in_world.len();
+    if answered.len() != n
+        || state.motion.len() != n
+        || state.normals.len() != s.triangles.len()
+        || state.touched.len() != s.triangles.len()
+        || state.is_bent.len() != state.near.len()
+    {
+        motion_and_bend(body, state);
+        return;
+    }
+    let shift = state.centre[1] - state.centre[0];
+    state.touch_mark = state.touch_mark.wrapping_add(1).max(1);
+    let mark = state.touch_mark;
+    let mut any = false;
+    for (v, &answer) in answered.iter().enumerate() {
+        if (answer as usize) < round {
+            continue;
+        }
+        any = true;
+        state.motion[v] = relative_displacement(body, v, &shift);
+        let run = state.incident_offsets[v] as usize..state.incident_offsets[v + 1] as usize;
+        for &t in &state.incident[run] {
+            state.touched[t as usize] = mark;
+            state.normals[t as usize][1] =
+                unit_normal(&s.next_position_in_world, &s.triangles[t as usize]);
+        }
+    }
+    if !any {
+        return;
+    }
+    // Only the pairs with a touched triangle changed (their nodes' motion, their normals).
+    for p in 0..state.near.len() {
+        let (ta, tb) = state.near[p];
+        if state.is_bent[p]
+            || (state.touched[ta as usize] != mark && state.touched[tb as usize] != mark)
+        {
+            continue;
+        }
+        if bent(body, state, ta, tb) {
+            state.is_bent[p] = true;
+            state.bent.push((ta, tb));
+        }
+    }
+}
+
+/// Whether near pair (`ta`, `tb`) is bent: its normals more than [`BEND`] apart at the tick's start
+/// or at its end, and neither triangle on one side of the other's plane — its nodes that are not
+/// the other's all on the same side, at the start and at the end, farther than the pair's nodes
+/// can bring them over the tick (a ridge, or a valley still open). A triangle on one side of the
+/// other's plane meets it only at the nodes they share, so such a pair cannot cross.
+fn bent(body: &Body, state: &SelfBody, ta: u32, tb: u32) -> bool {
+    let s = &body.surface;
+    let (a, b) = (&state.normals[ta as usize], &state.normals[tb as usize]);
+    let most = BEND.cos();
+    // (A triangle with no area has a zero normal: tested.)
+    if a[0].dot(&b[0]) >= most && a[1].dot(&b[1]) >= most {
+        return false;
+    }
+    let (ca, cb) = (&s.triangles[ta as usize], &s.triangles[tb as usize]);
+    let reach = ca
+        .iter()
+        .chain(cb)
+        .map(|&v| state.motion[v as usize])
+        .fold(0.0, f64::max);
+    // What a node's distance to the other's plane may change by: its own motion, the plane's at
+    // that node (its corners' motion, extrapolated beyond the triangle: up to a few times it one
+    // edge away) and its turning.
+    let margin = RIDGE_REACH * reach + RIDGE_MARGIN;
+    // The side of `corners`'s plane (normal `n`, positions `x`) that every node of `others` not
+    // in `corners` lies on, beyond the margin (0: no one side).
+    let side = |x: &[Vec3], corners: &[u32; 3], n: &Vec3, others: &[u32; 3]| {
+        if *n == Vec3::zeros() {
+            return 0;
+        }
+        let origin = x[corners[0] as usize];
+        let mut sides = others
+            .iter()
+            .filter(|v| !corners.contains(v))
+            .map(|&v| n.dot(&(x[v as usize] - origin)))
+            .map(|d| i32::from(d > margin) - i32::from(d < -margin));
+        let first = sides.next().unwrap_or(0);
+        if sides.all(|s| s == first) { first } else { 0 }
+    };
+    let (x0, x1) = (&s.position_in_world, &s.next_position_in_world);
+    let shut = |one: i32, other: i32| one != 0 && one == other;
+    !(shut(side(x0, ca, &a[0], cb), side(x1, ca, &a[1], cb))
+        || shut(side(x0, cb, &b[0], ca), side(x1, cb, &b[1], ca)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::body::{BodyParams, Placement};
+    use crate::scene::mesh::icosphere;
+
+    /// The near pairs listed from the topology are exactly the pairs of triangles that share a
+    /// node or have nodes one edge apart (brute force over every pair), each once; a round ball at
+    /// rest has none bent and no far pair.
+    #[test]
+    fn near_pairs_are_the_pairs_within_one_edge_each_once() {
+        let params = BodyParams {
+            self_contact: true,
+            ..BodyParams::default()
+        };
+        let body = Body::new("b", &icosphere(0.03, 2), &params, &Placement::default());
+        let mut pairs = SelfPairs::new(std::slice::from_ref(&body), 0);
+        let mut bvh = TriangleBvh::with_capacity(body.mesh_capacity().1);
+        assert!(pairs.update(0, &body, &mut bvh));
+        let triangles = &body.surface.triangles;
+        let linked = |u: u32, v: u32| {
+            u == v
+                || body
+                    .edges
+                    .a
+                    .iter()
+                    .zip(&body.edges.b)
+                    .any(|(&a, &b)| (a, b) == (u, v) || (a, b) == (v, u))
+        };
+        let mut expected = Vec::new();
+        for i in 0..triangles.len() {
+            for j in i + 1..triangles.len() {
+                if triangles[i]
+                    .iter()
+                    .any(|&u| triangles[j].iter().any(|&v| linked(u, v)))
+                {
+                    expected.push((i as u32, j as u32));
+                }
+            }
+        }
+        let mut listed = pairs.near(0).to_vec();
+        listed.sort_unstable();
+        assert_eq!(listed, expected);
+        // 320 triangles, each with 12 others sharing a node (15 where five meet at a node) and
+        // about 22 more one edge away, each pair once (5 550), within the room reserved.
+        assert!(listed.len() > 320 * 30 / 2 && listed.len() < 320 * 36 / 2);
+        assert!(listed.len() <= NEAR_PER_TRIANGLE * 320);
+        assert!(pairs.bent(0).is_empty());
+        assert!(pairs.pairs(0).is_empty());
+    }
+}
