@@ -1098,14 +1098,15 @@ pub fn resolve_body_collisions(
                 // body's nodes' mean (a body falling or sliding as a whole closes nothing).
                 let nodes = [a[0], a[1], a[2], b[0], b[1], b[2]];
                 let motion = scratch.self_pairs.relative_motion(k, &bodies[k], &nodes);
-                // A bent near pair tests every vertex and side of its two triangles, not only
-                // those each owns: the pairs that own them may not be bent.
+                // Every vertex and side of the two triangles, not only those each owns: the pair
+                // of a vertex's (side's) owner and this face may be a near pair not bent, or a far
+                // pair not listed, where this one is.
                 answered += test_triangle_pair(
                     bodies,
                     scratch,
                     [(k, ta), (k, tb)],
                     (2.0 * motion + FILTER_MARGIN, scratch.self_pairs.shift(k)),
-                    (round, skipping, freeze || !complete, p >= far),
+                    (round, skipping, freeze || !complete, true),
                     dt,
                 );
             }
@@ -1122,11 +1123,13 @@ pub fn resolve_body_collisions(
 }
 
 /// Tests triangle `ta` of body `i` against `tb` of body `j` (`i` may be `j`: two triangles of one
-/// body with no node in common): each vertex against the other's face and each side against the
-/// other's sides, through the one triangle that owns it, after the filters on their start
-/// distance against `most` (m: what the two may close by over the tick) and their own nodes'
-/// motion. What collides stops short (or is frozen, with `freeze`); returns how many collisions
-/// it answered.
+/// body, whose vertex–face and edge–edge pairs that share a node are not tested): each vertex
+/// against the other's face and each side against the other's sides, through the one triangle
+/// that owns it (all of them with `every`), after the filters on their start distance against
+/// `most` (m: what the two may close by over the tick) and their own nodes' motion, less `common`
+/// (zero between bodies; a body's mean displacement for its own pairs: two primitives that move
+/// alike do not close). What collides stops short (or is frozen, with `freeze`); returns how many
+/// collisions it answered.
 fn test_triangle_pair(
     bodies: &mut [Body],
     scratch: &mut BodyContactScratch,
