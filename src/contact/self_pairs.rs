@@ -73,6 +73,9 @@ struct SelfBody {
     motion: Room<f64>,
     /// Per near pair, whether it is in `bent`.
     is_bent: Room<bool>,
+    /// Per triangle and per node, whether it is smooth this tick (see [`smoothness`]).
+    smooth: Room<bool>,
+    node_smooth: Room<bool>,
     /// Per triangle, `touch_mark` when a node of it moved in the net's last round.
     touched: Room<u32>,
     touch_mark: u32,
@@ -115,6 +118,8 @@ impl SelfPairs {
             is_bent: Room::with_capacity(NEAR_PER_TRIANGLE * triangles),
             touched: Room::with_capacity(triangles),
             touch_mark: 0,
+            smooth: Room::with_capacity(triangles),
+            node_smooth: Room::with_capacity(nodes),
             motion: Room::with_capacity(nodes),
             lower: Room::with_capacity(nodes),
             upper: Room::with_capacity(nodes),
@@ -469,14 +474,60 @@ fn motion_and_bend(body: &Body, state: &mut SelfBody) {
             unit_normal(&s.next_position_in_world, t),
         ]
     }));
+    smoothness(body, state);
     for p in 0..state.near.len() {
         let (ta, tb) = state.near[p];
-        let yes = bent(body, state, ta, tb);
+        let smooth = |t: u32| state.smooth.get(t as usize) == Some(&true);
+        let yes = !(smooth(ta) && smooth(tb)) && bent(body, state, ta, tb);
         state.is_bent.push(yes);
         if yes {
             // (Both lists have the same room; the bent are some of the near.)
             state.bent.push((ta, tb));
         }
+    }
+}
+
+/// Which triangles are *smooth*: each of their nodes' triangles within a quarter of [`BEND`] of
+/// an axis of that node (the mean of their normals), at the tick's start and at its end. Two near triangles whose nodes
+/// are all smooth are not bent: they share a node, whose triangles lie within half of [`BEND`] of
+/// each other, or have nodes one edge apart, which share the triangles on that edge, so that the
+/// two lie within a quarter, twice, and a quarter again: [`BEND`] (an angle between normals is a
+/// distance on the sphere). A smooth organ at rest looks at none of its near pairs.
+fn smoothness(body: &Body, state: &mut SelfBody) {
+    let n = body.node_count();
+    let triangles = &body.surface.triangles;
+    state.smooth.clear();
+    state.node_smooth.clear();
+    if state.incident_offsets.len() != n + 1
+        || n > state.node_smooth.capacity()
+        || triangles.len() > state.smooth.capacity()
+    {
+        let room = state.smooth.capacity();
+        state.smooth.resize(triangles.len().min(room), false);
+        return;
+    }
+    // (Rounded down a little: the angles are added as distances, each dot product is rounded.)
+    let least = (0.99 * BEND / 4.0).cos();
+    for v in 0..n {
+        let run = state.incident_offsets[v] as usize..state.incident_offsets[v + 1] as usize;
+        let around = &state.incident[run];
+        // The axis: the mean of the node's triangles' normals (none: a node of no triangle).
+        let sum = |k: usize| {
+            around
+                .iter()
+                .fold(Vec3::zeros(), |sum, &t| sum + state.normals[t as usize][k])
+        };
+        let axis = [sum(0), sum(1)].map(|a| a.try_normalize(0.0).unwrap_or_else(Vec3::zeros));
+        let smooth = around.iter().all(|&t| {
+            let normal = &state.normals[t as usize];
+            normal[0].dot(&axis[0]) >= least && normal[1].dot(&axis[1]) >= least
+        });
+        state.node_smooth.push(smooth);
+    }
+    for t in triangles {
+        state
+            .smooth
+            .push(t.iter().all(|&v| state.node_smooth[v as usize]));
     }
 }
 
