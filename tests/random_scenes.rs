@@ -1,7 +1,7 @@
 //! Scenes no test was written for: random scenes of two to four bodies (ellipsoids, icospheres,
 //! capsules, boxes; every integrator; stacked, scattered or side by side, some thrown at 3 m/s;
-//! masses, stiffnesses and damping over three decades), some cuttable, tearable, refined or
-//! plastic, tied by attachments, and up to two tools (probe, blade, grasper) driven by scripts
+//! masses, stiffnesses and damping over three decades), some cuttable, tearable, refined, plastic
+//! or with self-contact, tied by attachments, and up to two tools (probe, blade, grasper) driven by scripts
 //! through them, with or without a force limit. Each is stepped 400 ticks: no panic, every node
 //! position finite, every tool's feedback finite. A scene the generator makes that the scene
 //! checks reject (an attachment with no node within its radius, one too stiff for the step) must be
@@ -114,6 +114,8 @@ fn random_scene(seed: u64) -> String {
             2 => t += "subdivision = {}\n",
             3 => t += "plasticity = { yield = 0.002, creep = 1.0, max = 0.01 }\n",
             4 => t += "cutting = {}\nsubdivision = {}\n",
+            5 => t += "self_contact = true\n",
+            6 => t += "self_contact = true\nsubdivision = {}\n",
             _ => {}
         }
         names.push(name);
