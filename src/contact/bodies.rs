@@ -1183,29 +1183,13 @@ fn test_triangle_pair(
             if face.contains(&v) {
                 continue;
             }
-            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
-                continue;
-            }
-            let hit = test_primitive(
+            answered += test_and_answer(
                 bodies,
-                nodes,
-                (true, most, &common),
-                &scratch.settings,
-                overflow_freeze,
+                scratch,
+                (nodes, true),
+                (most, &common),
+                (round, skipping, overflow_freeze),
                 dt,
-            );
-            if hit {
-                mark_moved(&mut scratch.moved, &nodes);
-                remember(
-                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
-                    Remembered::of(nodes, true, f64::INFINITY),
-                );
-            }
-            answered += mark_answered(
-                (&mut scratch.answered, &mut scratch.marked),
-                &nodes,
-                round,
-                hit,
             );
         }
     }
@@ -1221,34 +1205,56 @@ fn test_triangle_pair(
             if nodes[..2].iter().any(|r| nodes[2..].contains(r)) {
                 continue;
             }
-            if !worth_testing(&scratch.answered, &nodes, round, skipping) {
-                continue;
-            }
-            let hit = test_primitive(
+            answered += test_and_answer(
                 bodies,
-                nodes,
-                (false, most, &common),
-                &scratch.settings,
-                overflow_freeze,
+                scratch,
+                (nodes, false),
+                (most, &common),
+                (round, skipping, overflow_freeze),
                 dt,
-            );
-            if hit {
-                mark_moved(&mut scratch.moved, &nodes);
-                remember(
-                    (&mut scratch.remembered, &mut scratch.remembered_dropped),
-                    Remembered::of(nodes, false, f64::INFINITY),
-                );
-            }
-            answered += mark_answered(
-                (&mut scratch.answered, &mut scratch.marked),
-                &nodes,
-                round,
-                hit,
             );
         }
     }
 
     answered
+}
+
+/// One vertex–face (`vertex_face`: the vertex, then the face) or edge–edge pair of `nodes`, unless
+/// the round need not test it ([`worth_testing`]): tested, and a collision stopped short (see
+/// [`test_primitive`]), its nodes marked moved and answered, the pair remembered for the next
+/// tick's response; returns 1 when it answered a collision.
+fn test_and_answer(
+    bodies: &mut [Body],
+    scratch: &mut BodyContactScratch,
+    (nodes, vertex_face): ([NodeRef; 4], bool),
+    (most, common): (f64, &Vec3),
+    (round, skipping, overflow_freeze): (usize, bool, bool),
+    dt: f64,
+) -> u32 {
+    if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+        return 0;
+    }
+    let hit = test_primitive(
+        bodies,
+        nodes,
+        (vertex_face, most, common),
+        &scratch.settings,
+        overflow_freeze,
+        dt,
+    );
+    if hit {
+        mark_moved(&mut scratch.moved, &nodes);
+        remember(
+            (&mut scratch.remembered, &mut scratch.remembered_dropped),
+            Remembered::of(nodes, vertex_face, f64::INFINITY),
+        );
+    }
+    mark_answered(
+        (&mut scratch.answered, &mut scratch.marked),
+        &nodes,
+        round,
+        hit,
+    )
 }
 
 /// Barycentric weights of `q` (a point of the triangle's plane) in triangle (a, b, c).
