@@ -10,18 +10,19 @@
 //!   the slack. Each tick checks that every node's centred start and end lie within
 //!   [`SELF_SLACK`] of its box at the listing (then every point of its trajectory does: the
 //!   centred position along a straight trajectory is the same blend of the two, and a box grown by
-//!   the slack is convex), so that a pair not listed cannot meet; else the body lists again. The
-//!   smooth organs of the shipped scenes list no far pair at rest.
+//!   the slack is convex), so that a pair not listed cannot meet; else the body lists again.
 //! - **Near pairs**, triangles that share a node or have nodes one edge apart: always beside each
 //!   other, so their boxes tell nothing. They are listed from the topology alone (again when it
-//!   changes), and a tick tests those that are *bent* towards each other: whose normals, at the
-//!   tick's start or at its end, lie more than [`BEND`] apart. A surface creases, and its sheets
-//!   fold onto each other, only by bending the faces of the crease through large angles; faces
-//!   that stay near parallel lie beside each other on a smooth patch and cannot meet anywhere but
-//!   at the nodes they share (a normal-cone argument, as cloth simulators cull self-collisions;
-//!   it is a criterion, not a proof: a fan of faces crumpled around one node with every pair
-//!   within [`BEND`] is not tested). Of a near pair, the vertex–face and edge–edge pairs that
-//!   share a node are never tested (they meet at that node by construction).
+//!   changes), and a tick tests those that are *bent* towards each other (see [`bent`]): normals
+//!   more than [`BEND`] apart at the tick's start or at its end, and neither triangle on one side
+//!   of the other's plane. A surface creases, and its sheets fold onto each other, only by bending
+//!   the faces of the crease through large angles; faces that stay near parallel lie beside each
+//!   other on a smooth patch and cannot meet anywhere but at the nodes they share (a normal-cone
+//!   argument, as cloth simulators cull self-collisions; it is a criterion, not a proof: a fan of
+//!   faces crumpled around one node with every pair within [`BEND`] is not tested). Pairs of
+//!   smooth nodes are not looked at (see [`smoothness`]); after each round of the net, the pairs of
+//!   the triangles whose nodes it moved are looked at again. Of a near pair, the vertex–face and
+//!   edge–edge pairs that share a node are never tested (they meet at that node by construction).
 
 use crate::Room;
 use crate::Vec3;
@@ -38,7 +39,7 @@ pub(super) const BEND: f64 = std::f64::consts::FRAC_PI_3;
 
 /// A near pair one of whose triangles lies on one side of the other's plane by more than this many
 /// times its nodes' largest motion relative to the body, plus [`RIDGE_MARGIN`], is not tested (see
-/// [`bend`]).
+/// [`bent`]).
 const RIDGE_REACH: f64 = 8.0;
 
 /// The least distance (m) from the other's plane of a near pair not tested.
@@ -48,7 +49,7 @@ const RIDGE_MARGIN: f64 = 1e-5;
 const PAIRS_PER_TRIANGLE: usize = 32;
 
 /// Most near pairs a body lists per triangle it may have (a triangle of a mesh whose nodes have
-/// six neighbours has 36 near triangles, each pair listed once: 18).
+/// six neighbours has about 35 near triangles, each pair listed once: about 17).
 const NEAR_PER_TRIANGLE: usize = 32;
 
 /// One body's self-contact state.
@@ -93,7 +94,8 @@ struct SelfBody {
     centre: [Vec3; 2],
 }
 
-/// Every body's self-contact state (room for the bodies yet to come too).
+/// Every body's self-contact state (no room for the pieces of a cut: a body cut or torn has no
+/// self-contact).
 #[derive(Clone, Debug)]
 pub(super) struct SelfPairs {
     bodies: Vec<SelfBody>,
