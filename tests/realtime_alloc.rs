@@ -295,3 +295,48 @@ fn recording_and_the_live_view_allocate_nothing_on_the_tick() {
     let shown = live.messages.get("/foxglove/scene").copied().unwrap_or(0);
     assert!(shown > 0 && shown <= display_ticks, "{live:?}");
 }
+
+#[test]
+fn self_contact_allocates_nothing_on_the_tick() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    // A default ball dropped from 0.5 m onto the table with self-contact: it lands at about
+    // 0.32 s, its top meets its bottom, its far pairs are listed again many times; then
+    // probe_refine.toml with self-contact on its organ, whose topology the probe's subdivision
+    // changes (the near pairs listed again).
+    let ball = common::scene(
+        r#"
+        [world]
+        gravity = [0.0, 0.0, -9.81]
+        [[body]]
+        name = "ball"
+        mesh = { ellipsoid = { radii = [0.02, 0.02, 0.02], subdivisions = 3 } }
+        position = [0.0, 0.0, 0.5]
+        self_contact = true
+        [[obstacle]]
+        name = "table"
+        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+        "#,
+    );
+    let mut refine = load_scene(&common::repo_root().join("scenes/probe_refine.toml")).unwrap();
+    refine.bodies[0].params.self_contact = true;
+    for (name, scene, ticks) in [("ball", ball, 800), ("probe_refine", refine, 7000)] {
+        let mut world = World::from_scene(&scene);
+        for _ in 0..10 {
+            world.step();
+        }
+        ALLOCATIONS.store(0, Ordering::SeqCst);
+        set_counting(true);
+        let mut collisions = 0u64;
+        for _ in 0..ticks {
+            world.step();
+            collisions += u64::from(world.counters.bodies.collisions);
+        }
+        set_counting(false);
+        let count = ALLOCATIONS.load(Ordering::SeqCst);
+        println!(
+            "{name}: {collisions} net collisions, topology version {}, {count} allocations",
+            world.bodies[0].topology_version
+        );
+        assert_eq!(count, 0, "{name}: {count} allocations with self-contact");
+    }
+}
