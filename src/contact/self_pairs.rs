@@ -676,5 +676,9 @@ mod tests {
         assert!(listed.len() <= NEAR_PER_TRIANGLE * 320);
         assert!(pairs.bent(0).is_empty());
         assert!(pairs.pairs(0).is_empty());
+        // Every triangle of the round ball is smooth: no near pair is looked at.
+        let smooth = &pairs.bodies[0].smooth;
+        assert_eq!(smooth.len(), 320);
+        assert!(smooth.iter().all(|&s| s));
     }
 }
