@@ -519,6 +519,12 @@ fn cutting_blade_mask(
 /// Rounds of contact and implicit re-solve per step (each pins the nodes the contact stage resolved).
 const CONTACT_ROUNDS: usize = 3;
 
+/// Whether the body–body stage has work with these bodies: two or more, or one whose surface may
+/// not pass through itself.
+fn body_contact_needed(bodies: &[Body]) -> bool {
+    bodies.len() >= 2 || bodies.iter().any(|b| b.params.self_contact_on())
+}
+
 impl World {
     /// An empty world.
     pub fn new(params: WorldParams) -> Self {
@@ -618,8 +624,7 @@ impl World {
                 .any(|o| o.friction > 0.0 || o.static_friction > 0.0),
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
             tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
-            body_contact: self.bodies.len() >= 2
-                || self.bodies.iter().any(|b| b.params.self_contact_on()),
+            body_contact: body_contact_needed(&self.bodies),
             subdivision: !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_some()),
             cutting: self
@@ -886,9 +891,8 @@ impl World {
             self.origin.push(spare.origin);
             self.pieces_named.push(0);
         }
-        self.systems.body_contact = (self.bodies.len() >= 2
-            || self.bodies.iter().any(|b| b.params.self_contact_on()))
-            && self.body_contact.is_some();
+        self.systems.body_contact =
+            body_contact_needed(&self.bodies) && self.body_contact.is_some();
     }
 
     /// Keeps the body–body response's candidate pairs from tick to tick while the bodies stay

@@ -1059,7 +1059,7 @@ pub fn resolve_body_collisions(
         // Each body with self-contact on against itself: its pairs (listed again at the first
         // round where its nodes left their slack) whose boxes meet this round.
         for k in 0..bodies.len() {
-            if !self_on || !SelfPairs::on(bodies, k) {
+            if !SelfPairs::on(bodies, k) {
                 continue;
             }
             if round == 0 {

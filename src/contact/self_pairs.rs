@@ -294,19 +294,14 @@ impl SelfPairs {
     /// How far the nodes `nodes` of body `k` (`body`) move over the tick relative to the body's
     /// nodes' mean, at most (m).
     pub(super) fn relative_motion(&self, k: usize, body: &Body, nodes: &[u32]) -> f64 {
-        let Some(state) = self.bodies.get(k) else {
+        if self.bodies.get(k).is_none() {
             return f64::INFINITY;
-        };
-        let shift = state.centre[1] - state.centre[0];
-        let s = &body.surface;
+        }
+        let shift = self.shift(k);
         nodes
             .iter()
-            .map(|&v| {
-                let v = v as usize;
-                (s.next_position_in_world[v] - s.position_in_world[v] - shift).norm_squared()
-            })
+            .map(|&v| relative_displacement(body, v as usize, &shift))
             .fold(0.0, f64::max)
-            .sqrt()
     }
 }
 
