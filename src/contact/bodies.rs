@@ -124,6 +124,12 @@ pub struct BodyContactCounters {
     /// response and again by the net where the response's pushes took a node out of its slack (the
     /// others' were kept from an earlier tick).
     pub listed_pairs: u32,
+    /// Bodies with self-contact listed again between two rounds of the net (its stops moved a
+    /// node's end out of the slack of the far listing; see `SelfPairs::update_after_round`).
+    pub self_listed_again: u32,
+    /// Bodies with self-contact whose far listing did not hold for the trajectories the net left
+    /// (its last round still answered collisions): pairs of their triangles may have gone untested.
+    pub self_unlisted: u32,
 }
 
 /// A vertex of one body touching a face of another, or an edge touching an edge (or about to,
@@ -1075,6 +1081,8 @@ pub fn resolve_body_collisions(
                     .bend_again(k, &bodies[k], &scratch.answered[k], round);
             }
             let complete = scratch.self_pairs.complete(k);
+            // (Listed again after the round before: every pair, as in a first round.)
+            let skipping = skipping && !scratch.self_pairs.retest(k);
             let far = scratch.self_pairs.pairs(k).len();
             for p in 0..far + scratch.self_pairs.bent(k).len() {
                 let (ta, tb) = if p < far {
@@ -1117,6 +1125,34 @@ pub fn resolve_body_collisions(
         }
         if answered == 0 {
             break;
+        }
+        // A body whose stops this round took a node's end out of its far listing's slack: listed
+        // again, and all its pairs tested in the next round.
+        for k in 0..bodies.len() {
+            if !SelfPairs::on(bodies, k) {
+                continue;
+            }
+            if let Some(complete) = scratch.self_pairs.update_after_round(
+                k,
+                &bodies[k],
+                &mut scratch.bvhs[k],
+                (&scratch.answered[k], round),
+            ) {
+                counters.self_listed_again += 1;
+                if !complete {
+                    counters.overflows += 1;
+                }
+            }
+        }
+    }
+    // Checked, where the net moved anything: the far listings hold for the trajectories as they
+    // end (not when the last round still answered collisions, with no round after it to list
+    // again).
+    if counters.collisions > 0 {
+        for k in 0..bodies.len() {
+            if SelfPairs::on(bodies, k) && !scratch.self_pairs.holds(k, &bodies[k]) {
+                counters.self_unlisted += 1;
+            }
         }
     }
     counters

@@ -10,7 +10,12 @@
 //!   the slack. Each tick checks that every node's centred start and end lie within
 //!   [`SELF_SLACK`] of its box at the listing (then every point of its trajectory does: the
 //!   centred position along a straight trajectory is the same blend of the two, and a box grown by
-//!   the slack is convex), so that a pair not listed cannot meet; else the body lists again.
+//!   the slack is convex), so that a pair not listed cannot meet; else the body lists again. The
+//!   net's stops change the ends: a node stopped short leaves its centred trajectory by up to the
+//!   body's mean displacement (a ball landing at 3 m/s moves 3 mm a tick, the slack is 1 mm), so
+//!   after each round the nodes the round answered are checked again, and a body one of them left
+//!   is listed again (about the nodes' mean as they now end: any straight path of a centre shared
+//!   by every node will do) and has every pair tested in the next round.
 //! - **Near pairs**, triangles that share a node or have nodes one edge apart: always beside each
 //!   other, so their boxes tell nothing. They are listed from the topology alone (again when it
 //!   changes), and a tick tests those that are *bent* towards each other (see [`bent`]): normals
@@ -92,6 +97,37 @@ struct SelfBody {
     listed: bool,
     /// The nodes' mean at the start and the end of this tick.
     centre: [Vec3; 2],
+    /// Whether the last round of the net listed the body again (its next round tests every pair).
+    retest: bool,
+}
+
+impl SelfBody {
+    /// Whether the far listing holds for the body's trajectories: every node's centred start and
+    /// end (about `centre`) within [`SELF_SLACK`] of its centred box at the listing.
+    fn holds(&self, body: &Body) -> bool {
+        let s = &body.surface;
+        let n = s.position_in_world.len();
+        if !self.listed || self.lower.len() != n {
+            return false;
+        }
+        let [c0, c1] = self.centre;
+        (0..n).all(|v| {
+            within_slack(
+                &(s.position_in_world[v] - c0),
+                &self.lower[v],
+                &self.upper[v],
+            ) && within_slack(
+                &(s.next_position_in_world[v] - c1),
+                &self.lower[v],
+                &self.upper[v],
+            )
+        })
+    }
+}
+
+/// Whether centred point `p` lies within [`SELF_SLACK`] of the box with corners `lo` and `hi`.
+fn within_slack(p: &Vec3, lo: &Vec3, hi: &Vec3) -> bool {
+    (0..3).all(|d| p[d] >= lo[d] - SELF_SLACK && p[d] <= hi[d] + SELF_SLACK)
 }
 
 /// Every body's self-contact state (no room for the pieces of a cut: a body cut or torn has no
@@ -129,6 +165,7 @@ impl SelfPairs {
             complete: true,
             listed: false,
             centre: [Vec3::zeros(); 2],
+            retest: false,
         };
         let on = |b: &&Body| b.params.self_contact_on();
         let most_triangles = bodies
@@ -177,29 +214,14 @@ impl SelfPairs {
             adjacency(body, state);
             near_pairs(body, state);
         }
+        state.retest = false;
         let near_complete = state.near_complete;
         let mean = |p: &[Vec3]| p.iter().fold(Vec3::zeros(), |sum, x| sum + x) / n.max(1) as f64;
         state.centre = [mean(&s.position_in_world), mean(&s.next_position_in_world)];
         let [c0, c1] = state.centre;
         motion_and_bend(body, state);
-        if state.listed && state.lower.len() == n {
-            let within = |p: &Vec3, lo: &Vec3, hi: &Vec3| {
-                (0..3).all(|d| p[d] >= lo[d] - SELF_SLACK && p[d] <= hi[d] + SELF_SLACK)
-            };
-            let holds = (0..n).all(|v| {
-                within(
-                    &(s.position_in_world[v] - c0),
-                    &state.lower[v],
-                    &state.upper[v],
-                ) && within(
-                    &(s.next_position_in_world[v] - c1),
-                    &state.lower[v],
-                    &state.upper[v],
-                )
-            });
-            if holds {
-                return state.complete && near_complete;
-            }
+        if state.holds(body) {
+            return state.complete && near_complete;
         }
         // A new listing: the centred boxes of this tick's trajectories, and the triangle pairs
         // whose boxes grown by the slack meet, found in the hierarchy refitted to them.
@@ -282,6 +304,60 @@ impl SelfPairs {
     #[cfg(test)]
     fn near(&self, k: usize) -> &[(u32, u32)] {
         self.bodies.get(k).map_or(&[], |b| &b.near[..])
+    }
+
+    /// Whether node `v` of body `k` ending at `end` keeps the far listing: the test
+    /// [`SelfPairs::update`] makes of it, exactly.
+    fn keeps_listing(&self, k: usize, v: usize, end: &Vec3) -> bool {
+        let Some(b) = self.bodies.get(k) else {
+            return false;
+        };
+        if !b.listed || v >= b.lower.len() {
+            return false;
+        }
+        within_slack(&(end - b.centre[1]), &b.lower[v], &b.upper[v])
+    }
+
+    /// Whether body `k`'s far listing holds for its trajectories as they now are (see
+    /// [`SelfPairs::update`]).
+    pub(super) fn holds(&self, k: usize, body: &Body) -> bool {
+        self.bodies.get(k).is_some_and(|b| b.holds(body))
+    }
+
+    /// After a round of the net: whether a node of body `k` that the round answered (its mark in
+    /// `answered` is `round` + 1) ends outside the far listing's slack (stopping a node short moves
+    /// its centred end off its centred trajectory, by up to the body's mean displacement, which a
+    /// body falling or thrown makes larger than the slack). Such a body is brought up to date
+    /// ([`SelfPairs::update`], which lists again about its nodes' mean as they now end, and finds
+    /// its bent pairs again); `Some(complete)` then, and every pair of it is to be tested in the
+    /// next round. `None` when every such node ends within the slack.
+    pub(super) fn update_after_round(
+        &mut self,
+        k: usize,
+        body: &Body,
+        bvh: &mut TriangleBvh,
+        (answered, round): (&[u32], usize),
+    ) -> Option<bool> {
+        let s = &body.surface;
+        let left = answered
+            .iter()
+            .enumerate()
+            .take(s.next_position_in_world.len())
+            .any(|(v, &mark)| {
+                mark as usize == round + 1
+                    && !self.keeps_listing(k, v, &s.next_position_in_world[v])
+            });
+        let complete = left.then(|| self.update(k, body, bvh));
+        if let Some(state) = self.bodies.get_mut(k) {
+            state.retest = left;
+        }
+        complete
+    }
+
+    /// Whether the net's last round listed body `k` again ([`SelfPairs::update_after_round`]):
+    /// then every pair of it is tested in this round, whether or not its nodes moved.
+    pub(super) fn retest(&self, k: usize) -> bool {
+        self.bodies.get(k).is_some_and(|b| b.retest)
     }
 
     /// Body `k`'s nodes' mean displacement over the tick (as it began; m).
