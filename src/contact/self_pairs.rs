@@ -84,6 +84,12 @@ struct SelfBody {
     node_smooth: Room<bool>,
     /// Per triangle, `touch_mark` when a node of it moved in the net's last round.
     touched: Room<u32>,
+    /// Per triangle, its near pairs (indices into `near`), as offsets into `pair_index` (empty
+    /// when the near pairs are not all listed).
+    pair_offsets: Room<u32>,
+    pair_index: Room<u32>,
+    /// One bit per near pair: those to look at again after a round (see [`bend_moved`]).
+    pair_bits: Room<u64>,
     touch_mark: u32,
     /// Per triangle, its unit normal at the tick's start and at its end.
     normals: Room<[Vec3; 2]>,
@@ -155,6 +161,9 @@ impl SelfPairs {
             normals: Room::with_capacity(triangles),
             is_bent: Room::with_capacity(NEAR_PER_TRIANGLE * triangles),
             touched: Room::with_capacity(triangles),
+            pair_offsets: Room::with_capacity(triangles + 1),
+            pair_index: Room::with_capacity(2 * NEAR_PER_TRIANGLE * triangles),
+            pair_bits: Room::with_capacity((NEAR_PER_TRIANGLE * triangles).div_ceil(64)),
             touch_mark: 0,
             smooth: Room::with_capacity(triangles),
             node_smooth: Room::with_capacity(nodes),
@@ -503,6 +512,50 @@ fn near_pairs(body: &Body, state: &mut SelfBody) {
             }
         }
     }
+    pairs_by_triangle(triangles.len(), state);
+}
+
+/// Each triangle's near pairs, as offsets into an index of `near` (a counting sort: each pair
+/// under both its triangles, in the order of `near`).
+fn pairs_by_triangle(triangles: usize, state: &mut SelfBody) {
+    let SelfBody {
+        near,
+        pair_offsets,
+        pair_index,
+        pair_bits,
+        ..
+    } = state;
+    pair_offsets.clear();
+    pair_index.clear();
+    pair_bits.clear();
+    if triangles + 1 > pair_offsets.capacity()
+        || 2 * near.len() > pair_index.capacity()
+        || near.len().div_ceil(64) > pair_bits.capacity()
+    {
+        return;
+    }
+    pair_offsets.resize(triangles + 1, 0);
+    for &(ta, tb) in near.iter() {
+        pair_offsets[ta as usize + 1] += 1;
+        pair_offsets[tb as usize + 1] += 1;
+    }
+    for t in 0..triangles {
+        pair_offsets[t + 1] += pair_offsets[t];
+    }
+    pair_index.resize(2 * near.len(), 0);
+    // (Each triangle's next free place, kept in its own offset until the pass is done.)
+    for (p, &(ta, tb)) in near.iter().enumerate() {
+        for t in [ta, tb] {
+            let at = &mut pair_offsets[t as usize];
+            pair_index[*at as usize] = p as u32;
+            *at += 1;
+        }
+    }
+    for t in (1..=triangles).rev() {
+        pair_offsets[t] = pair_offsets[t - 1];
+    }
+    pair_offsets[0] = 0;
+    pair_bits.resize(near.len().div_ceil(64), 0);
 }
 
 /// A node's displacement over the tick relative to the body's nodes' mean displacement (as the
@@ -623,6 +676,9 @@ fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize)
     state.touch_mark = state.touch_mark.wrapping_add(1).max(1);
     let mark = state.touch_mark;
     let mut any = false;
+    // (Each triangle's pairs are found through it when it has an index of them.)
+    let indexed = state.pair_offsets.len() == s.triangles.len() + 1
+        && state.pair_bits.len() == state.near.len().div_ceil(64);
     for (v, &answer) in answered.iter().enumerate() {
         if (answer as usize) < round {
             continue;
@@ -631,6 +687,13 @@ fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize)
         state.motion[v] = relative_displacement(body, v, &shift);
         let run = state.incident_offsets[v] as usize..state.incident_offsets[v + 1] as usize;
         for &t in &state.incident[run] {
+            if state.touched[t as usize] != mark && indexed {
+                let pairs = state.pair_offsets[t as usize] as usize
+                    ..state.pair_offsets[t as usize + 1] as usize;
+                for &p in &state.pair_index[pairs] {
+                    state.pair_bits[p as usize / 64] |= 1 << (p % 64);
+                }
+            }
             state.touched[t as usize] = mark;
             state.normals[t as usize][1] =
                 unit_normal(&s.next_position_in_world, &s.triangles[t as usize]);
@@ -639,17 +702,29 @@ fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize)
     if !any {
         return;
     }
-    // Only the pairs with a touched triangle changed (their nodes' motion, their normals).
-    for p in 0..state.near.len() {
+    // Only the pairs with a touched triangle changed (their nodes' motion, their normals), in the
+    // order of the near pairs: through the index, the bits set above, lowest first.
+    let look = |state: &mut SelfBody, p: usize| {
         let (ta, tb) = state.near[p];
-        if state.is_bent[p]
-            || (state.touched[ta as usize] != mark && state.touched[tb as usize] != mark)
-        {
-            continue;
-        }
-        if bent(body, state, ta, tb) {
+        if !state.is_bent[p] && bent(body, state, ta, tb) {
             state.is_bent[p] = true;
             state.bent.push((ta, tb));
+        }
+    };
+    if indexed {
+        for word in 0..state.pair_bits.len() {
+            let mut bits = std::mem::take(&mut state.pair_bits[word]);
+            while bits != 0 {
+                look(state, word * 64 + bits.trailing_zeros() as usize);
+                bits &= bits - 1;
+            }
+        }
+    } else {
+        for p in 0..state.near.len() {
+            let (ta, tb) = state.near[p];
+            if state.touched[ta as usize] == mark || state.touched[tb as usize] == mark {
+                look(state, p);
+            }
         }
     }
 }
@@ -751,5 +826,18 @@ mod tests {
         let smooth = &pairs.bodies[0].smooth;
         assert_eq!(smooth.len(), 320);
         assert!(smooth.iter().all(|&s| s));
+        // Each triangle's index names its near pairs, in their order.
+        let state = &pairs.bodies[0];
+        let near = pairs.near(0);
+        assert_eq!(state.pair_offsets.len(), 321);
+        for t in 0..320u32 {
+            let run = state.pair_offsets[t as usize] as usize
+                ..state.pair_offsets[t as usize + 1] as usize;
+            let indexed: Vec<u32> = state.pair_index[run].to_vec();
+            let wanted: Vec<u32> = (0..near.len() as u32)
+                .filter(|&p| near[p as usize].0 == t || near[p as usize].1 == t)
+                .collect();
+            assert_eq!(indexed, wanted, "triangle {t}");
+        }
     }
 }
