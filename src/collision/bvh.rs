@@ -46,6 +46,8 @@ pub struct TriangleBvh {
     /// Scratch of the refit: each node's box over the tick (a node is shared by about six
     /// triangles: its box is taken once).
     node_boxes: Room<Aabb>,
+    /// Each triangle's place in `order` (the leaves' order), from the last rebuild.
+    rank: Room<u32>,
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
@@ -80,6 +82,7 @@ impl TriangleBvh {
             side_keys: Room::with_capacity(3 * triangles),
             node_seen: Room::with_capacity(3 * triangles + 3),
             node_boxes: Room::with_capacity(3 * triangles + 3),
+            rank: Room::with_capacity(triangles),
         }
     }
 
@@ -101,6 +104,11 @@ impl TriangleBvh {
                 0,
                 triangles.len(),
             );
+        }
+        self.rank.clear();
+        self.rank.resize(triangles.len(), 0);
+        for (place, &t) in self.order.iter().enumerate() {
+            self.rank[t as usize] = place as u32;
         }
         self.triangle_boxes.clear();
         self.triangle_boxes.resize(triangles.len(), Aabb::empty());
@@ -315,6 +323,100 @@ impl TriangleBvh {
     }
 }
 
+impl TriangleBvh {
+    /// Triangle `t`'s place in the order of the leaves: a query ([`TriangleBvh::query`]) finds
+    /// triangles in this order.
+    pub fn rank(&self, t: u32) -> u32 {
+        self.rank[t as usize]
+    }
+
+    /// Appends to `pairs` every pair of distinct triangles of this hierarchy whose boxes overlap
+    /// and that `keep` keeps, each once as (smaller, larger), in a fixed order (one traversal of
+    /// the hierarchy against itself, where a query per triangle would walk it from the root once
+    /// per triangle). Returns false when `pairs` reached its capacity first (the list is then
+    /// incomplete).
+    pub fn self_overlapping_pairs(
+        &mut self,
+        mut keep: impl FnMut(u32, u32) -> bool,
+        pairs: &mut Vec<(u32, u32)>,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return true;
+        }
+        let stack = &mut self.stack;
+        stack.clear();
+        stack.push((0, 0));
+        let mut offer = |ta: u32, tb: u32, pairs: &mut Vec<(u32, u32)>| {
+            let pair = (ta.min(tb), ta.max(tb));
+            if !keep(pair.0, pair.1) {
+                return true;
+            }
+            if pairs.len() == pairs.capacity() {
+                return false;
+            }
+            pairs.push(pair);
+            true
+        };
+        while let Some((a, b)) = stack.pop() {
+            let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+            if a != b && !na.aabb.overlaps(&nb.aabb) {
+                continue;
+            }
+            match (na.count > 0, nb.count > 0) {
+                (true, true) => {
+                    let (fa, fb) = (na.first_or_left as usize, nb.first_or_left as usize);
+                    let left = &self.order[fa..fa + na.count as usize];
+                    let right = &self.order[fb..fb + nb.count as usize];
+                    for (k, &ta) in left.iter().enumerate() {
+                        // (Within one leaf, each pair once.)
+                        let others = if a == b { &right[k + 1..] } else { right };
+                        for &tb in others {
+                            if self.triangle_boxes[ta as usize]
+                                .overlaps(&self.triangle_boxes[tb as usize])
+                                && !offer(ta, tb, pairs)
+                            {
+                                return false;
+                            }
+                        }
+                    }
+                }
+                (true, false) => {
+                    if stack.len() + 2 > stack.capacity() {
+                        return false;
+                    }
+                    stack.push((a, nb.right));
+                    stack.push((a, nb.first_or_left));
+                }
+                (false, true) => {
+                    if stack.len() + 2 > stack.capacity() {
+                        return false;
+                    }
+                    stack.push((na.right, b));
+                    stack.push((na.first_or_left, b));
+                }
+                (false, false) if a == b => {
+                    if stack.len() + 3 > stack.capacity() {
+                        return false;
+                    }
+                    stack.push((na.first_or_left, na.right));
+                    stack.push((na.right, na.right));
+                    stack.push((na.first_or_left, na.first_or_left));
+                }
+                (false, false) => {
+                    if stack.len() + 4 > stack.capacity() {
+                        return false;
+                    }
+                    stack.push((na.right, nb.right));
+                    stack.push((na.right, nb.first_or_left));
+                    stack.push((na.first_or_left, nb.right));
+                    stack.push((na.first_or_left, nb.first_or_left));
+                }
+            }
+        }
+        true
+    }
+}
+
 /// The box of a triangle with `corners`, from its nodes' boxes.
 fn triangle_box(node_boxes: &[Aabb], corners: &[u32; 3]) -> Aabb {
     let mut own = Aabb::empty();
@@ -404,6 +506,42 @@ mod tests {
             // Taking a triangle out leaves its sides in its neighbours: 480 sides either way.
             assert_eq!(side_owners.len(), 480);
         }
+    }
+
+    #[test]
+    fn self_pairs_match_brute_force() {
+        let sphere = icosphere(0.05, 2);
+        let positions = &sphere.positions_in_body;
+        let mut bvh = TriangleBvh::build(&sphere.triangles, positions);
+        let moved: Vec<Vec3> = positions
+            .iter()
+            .enumerate()
+            .map(|(k, p)| p * (1.0 + 0.02 * ((k * 7919 % 13) as f64 - 6.0) / 6.0))
+            .collect();
+        bvh.refit(&sphere.triangles, positions, &moved, 1e-3);
+        let mut pairs = Vec::with_capacity(100_000);
+        assert!(bvh.self_overlapping_pairs(|a, b| (a + b) % 3 != 0, &mut pairs));
+        let mut expected = Vec::new();
+        let boxes = &bvh.triangle_boxes;
+        for a in 0..sphere.triangles.len() as u32 {
+            for b in a + 1..sphere.triangles.len() as u32 {
+                if boxes[a as usize].overlaps(&boxes[b as usize]) && (a + b) % 3 != 0 {
+                    expected.push((a, b));
+                }
+            }
+        }
+        let count = pairs.len();
+        pairs.sort_unstable();
+        pairs.dedup();
+        assert_eq!(pairs.len(), count, "a pair listed twice");
+        assert_eq!(pairs, expected);
+        assert!(
+            expected.len() > sphere.triangles.len(),
+            "too few pairs to tell"
+        );
+        // A list with too little room says so.
+        let mut short = Vec::with_capacity(10);
+        assert!(!bvh.self_overlapping_pairs(|_, _| true, &mut short));
     }
 
     #[test]

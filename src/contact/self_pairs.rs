@@ -33,7 +33,6 @@ use crate::Room;
 use crate::Vec3;
 use crate::body::Body;
 use crate::collision::bvh::TriangleBvh;
-use crate::collision::tool::Aabb;
 
 /// How far a node's centred position may leave its box at the listing before the body lists its
 /// far pairs again (m).
@@ -141,7 +140,6 @@ fn within_slack(p: &Vec3, lo: &Vec3, hi: &Vec3) -> bool {
 #[derive(Clone, Debug)]
 pub(super) struct SelfPairs {
     bodies: Vec<SelfBody>,
-    found: Room<u32>,
 }
 
 impl SelfPairs {
@@ -176,13 +174,6 @@ impl SelfPairs {
             centre: [Vec3::zeros(); 2],
             retest: false,
         };
-        let on = |b: &&Body| b.params.self_contact_on();
-        let most_triangles = bodies
-            .iter()
-            .filter(on)
-            .map(|b| b.mesh_capacity().1)
-            .max()
-            .unwrap_or(0);
         Self {
             bodies: bodies
                 .iter()
@@ -197,7 +188,6 @@ impl SelfPairs {
                 // (Pieces come only from bodies cut or torn, which have no self-contact.)
                 .chain((0..spare).map(|_| room(0, 0, 0)))
                 .collect(),
-            found: Room::with_capacity(most_triangles),
         }
     }
 
@@ -257,26 +247,17 @@ impl SelfPairs {
         bvh.refit(&s.triangles, &state.lower, &state.upper, SELF_SLACK);
         state.complete = true;
         state.listed = true;
-        for (ta, corners) in s.triangles.iter().enumerate() {
-            let mut aabb = Aabb::empty();
-            for &c in corners {
-                aabb.include(&state.lower[c as usize]);
-                aabb.include(&state.upper[c as usize]);
-            }
-            aabb.inflate(SELF_SLACK);
-            self.found.clear();
-            state.complete &= bvh.query(&aabb, &mut self.found);
-            for &tb in self.found.iter() {
-                if tb as usize <= ta || near_in_mesh(state, corners, &s.triangles[tb as usize]) {
-                    continue;
-                }
-                if state.pairs.len() == state.pairs.capacity() {
-                    state.complete = false;
-                    break;
-                }
-                state.pairs.push((ta as u32, tb));
-            }
-        }
+        // One traversal of the hierarchy against itself (where a query per triangle walks it from
+        // the root once per triangle), then put in the order those queries gave: by the first
+        // triangle, then the second's place in the leaves.
+        let mut pairs = std::mem::take(&mut state.pairs);
+        let triangles = &s.triangles;
+        state.complete = bvh.self_overlapping_pairs(
+            |ta, tb| !near_in_mesh(state, &triangles[ta as usize], &triangles[tb as usize]),
+            &mut pairs,
+        );
+        pairs.sort_unstable_by_key(|&(ta, tb)| (ta, bvh.rank(tb)));
+        state.pairs = pairs;
         // A list not complete is made again next tick.
         state.listed = state.complete;
         state.complete && near_complete
