@@ -582,14 +582,43 @@ fn motion_and_bend(body: &Body, state: &mut SelfBody) {
         ]
     }));
     smoothness(body, state);
-    for p in 0..state.near.len() {
-        let (ta, tb) = state.near[p];
-        let smooth = |t: u32| state.smooth.get(t as usize) == Some(&true);
-        let yes = !(smooth(ta) && smooth(tb)) && bent(body, state, ta, tb);
-        state.is_bent.push(yes);
-        if yes {
-            // (Both lists have the same room; the bent are some of the near.)
-            state.bent.push((ta, tb));
+    let indexed = state.pair_offsets.len() == s.triangles.len() + 1
+        && state.pair_bits.len() == state.near.len().div_ceil(64);
+    if !indexed {
+        for p in 0..state.near.len() {
+            let (ta, tb) = state.near[p];
+            let smooth = |t: u32| state.smooth.get(t as usize) == Some(&true);
+            let yes = !(smooth(ta) && smooth(tb)) && bent(body, state, ta, tb);
+            state.is_bent.push(yes);
+            if yes {
+                // (Both lists have the same room; the bent are some of the near.)
+                state.bent.push((ta, tb));
+            }
+        }
+        return;
+    }
+    // The pairs with a triangle that is not smooth, found through the index, in the order of the
+    // near pairs (the bits, lowest first): the same pairs as a sweep of all of them.
+    state.is_bent.resize(state.near.len(), false);
+    for t in 0..s.triangles.len() {
+        if state.smooth.get(t) == Some(&true) {
+            continue;
+        }
+        let pairs = state.pair_offsets[t] as usize..state.pair_offsets[t + 1] as usize;
+        for &p in &state.pair_index[pairs] {
+            state.pair_bits[p as usize / 64] |= 1 << (p % 64);
+        }
+    }
+    for word in 0..state.pair_bits.len() {
+        let mut bits = std::mem::take(&mut state.pair_bits[word]);
+        while bits != 0 {
+            let p = word * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (ta, tb) = state.near[p];
+            if bent(body, state, ta, tb) {
+                state.is_bent[p] = true;
+                state.bent.push((ta, tb));
+            }
         }
     }
 }
