@@ -294,28 +294,10 @@ impl TriangleBvh {
                         }
                     }
                 }
-                (true, false) => {
-                    if stack.len() + 2 > stack.capacity() {
+                _ => {
+                    if !push_children(stack, (a, na), (b, nb)) {
                         return false;
                     }
-                    stack.push((a, nb.right));
-                    stack.push((a, nb.first_or_left));
-                }
-                (false, true) => {
-                    if stack.len() + 2 > stack.capacity() {
-                        return false;
-                    }
-                    stack.push((na.right, b));
-                    stack.push((na.first_or_left, b));
-                }
-                (false, false) => {
-                    if stack.len() + 4 > stack.capacity() {
-                        return false;
-                    }
-                    stack.push((na.right, nb.right));
-                    stack.push((na.right, nb.first_or_left));
-                    stack.push((na.first_or_left, nb.right));
-                    stack.push((na.first_or_left, nb.first_or_left));
                 }
             }
         }
@@ -380,20 +362,6 @@ impl TriangleBvh {
                         }
                     }
                 }
-                (true, false) => {
-                    if stack.len() + 2 > stack.capacity() {
-                        return false;
-                    }
-                    stack.push((a, nb.right));
-                    stack.push((a, nb.first_or_left));
-                }
-                (false, true) => {
-                    if stack.len() + 2 > stack.capacity() {
-                        return false;
-                    }
-                    stack.push((na.right, b));
-                    stack.push((na.first_or_left, b));
-                }
                 (false, false) if a == b => {
                     if stack.len() + 3 > stack.capacity() {
                         return false;
@@ -402,19 +370,42 @@ impl TriangleBvh {
                     stack.push((na.right, na.right));
                     stack.push((na.first_or_left, na.first_or_left));
                 }
-                (false, false) => {
-                    if stack.len() + 4 > stack.capacity() {
+                _ => {
+                    if !push_children(stack, (a, na), (b, nb)) {
                         return false;
                     }
-                    stack.push((na.right, nb.right));
-                    stack.push((na.right, nb.first_or_left));
-                    stack.push((na.first_or_left, nb.right));
-                    stack.push((na.first_or_left, nb.first_or_left));
                 }
             }
         }
         true
     }
+}
+
+/// Pushes onto `stack` the pairs of children of node pair (`a`, `b`) (nodes `na`, `nb`, not both
+/// leaves; two distinct nodes, or nodes of two hierarchies): a leaf against the other's children,
+/// or each child against each. False when the stack has no room.
+fn push_children(
+    stack: &mut Room<(u32, u32)>,
+    (a, na): (u32, &Node),
+    (b, nb): (u32, &Node),
+) -> bool {
+    let room = if na.count > 0 || nb.count > 0 { 2 } else { 4 };
+    if stack.len() + room > stack.capacity() {
+        return false;
+    }
+    if na.count > 0 {
+        stack.push((a, nb.right));
+        stack.push((a, nb.first_or_left));
+    } else if nb.count > 0 {
+        stack.push((na.right, b));
+        stack.push((na.first_or_left, b));
+    } else {
+        stack.push((na.right, nb.right));
+        stack.push((na.right, nb.first_or_left));
+        stack.push((na.first_or_left, nb.right));
+        stack.push((na.first_or_left, nb.first_or_left));
+    }
+    true
 }
 
 /// The box of a triangle with `corners`, from its nodes' boxes.
