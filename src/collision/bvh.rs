@@ -521,6 +521,24 @@ mod tests {
                 }
             }
         }
+        // In the order of a query per triangle: by the first, then the second's place in the
+        // leaves.
+        let mut queried = Vec::new();
+        let mut found = Vec::with_capacity(1000);
+        for ta in 0..sphere.triangles.len() as u32 {
+            found.clear();
+            let own = bvh.triangle_boxes[ta as usize];
+            assert!(bvh.query(&own, &mut found));
+            queried.extend(
+                found
+                    .iter()
+                    .filter(|&&tb| tb > ta && (ta + tb) % 3 != 0)
+                    .map(|&tb| (ta, tb)),
+            );
+        }
+        let mut ranked = pairs.clone();
+        ranked.sort_unstable_by_key(|&(ta, tb)| (ta, bvh.rank(tb)));
+        assert_eq!(ranked, queried);
         let count = pairs.len();
         pairs.sort_unstable();
         pairs.dedup();

@@ -124,11 +124,13 @@ pub struct BodyContactCounters {
     /// response and again by the net where the response's pushes took a node out of its slack (the
     /// others' were kept from an earlier tick).
     pub listed_pairs: u32,
-    /// Bodies with self-contact listed again between two rounds of the net (its stops moved a
-    /// node's end out of the slack of the far listing; see `SelfPairs::update_after_round`).
+    /// Times a body with self-contact was brought up to date between two rounds of the net (the
+    /// round's stops moved a node's end out of the slack of its far listing; see
+    /// `SelfPairs::update_after_round`).
     pub self_listed_again: u32,
     /// Bodies with self-contact whose far listing did not hold for the trajectories the net left
-    /// (its last round still answered collisions): pairs of their triangles may have gone untested.
+    /// (its last round still answered collisions, with no round after it): pairs of their
+    /// triangles may have gone untested.
     pub self_unlisted: u32,
 }
 
@@ -1127,9 +1129,10 @@ pub fn resolve_body_collisions(
             break;
         }
         // A body whose stops this round took a node's end out of its far listing's slack: listed
-        // again, and all its pairs tested in the next round.
+        // again, and all its pairs tested in the next round (after the last round there is none:
+        // counted below).
         for k in 0..bodies.len() {
-            if !SelfPairs::on(bodies, k) {
+            if !SelfPairs::on(bodies, k) || round == ROUNDS + FREEZE_ROUNDS {
                 continue;
             }
             if let Some(complete) = scratch.self_pairs.update_after_round(

@@ -196,7 +196,8 @@ impl SelfPairs {
         bodies.get(k).is_some_and(|b| b.params.self_contact_on())
     }
 
-    /// Brings body `k`'s pairs up to date for this tick (its adjacency and near pairs when its
+    /// Brings body `k`'s pairs up to date for this tick, or between two rounds of the net for the
+    /// trajectories the rounds left ([`SelfPairs::update_after_round`]) (its adjacency and near pairs when its
     /// topology changed; a new far listing when a node left its slack; the bent near pairs), with
     /// its hierarchy `bvh`; returns false when a list is not complete (a list was full: the pairs
     /// beyond it are not tested).
@@ -249,7 +250,8 @@ impl SelfPairs {
         state.listed = true;
         // One traversal of the hierarchy against itself (where a query per triangle walks it from
         // the root once per triangle), then put in the order those queries gave: by the first
-        // triangle, then the second's place in the leaves.
+        // triangle, then the second's place in the leaves. (A list that fills up keeps other
+        // pairs than the queries kept; it is counted, and its tick's collisions are frozen.)
         let mut pairs = std::mem::take(&mut state.pairs);
         let triangles = &s.triangles;
         state.complete = bvh.self_overlapping_pairs(
@@ -451,6 +453,9 @@ fn near_pairs(body: &Body, state: &mut SelfBody) {
     let n = body.node_count();
     let triangles = &body.surface.triangles;
     state.near.clear();
+    // (No index until the near pairs are all listed.)
+    state.pair_offsets.clear();
+    state.pair_bits.clear();
     state.stamp.clear();
     state.near_complete = state.offsets.len() == n + 1
         && state.incident_offsets.len() == n + 1
@@ -496,8 +501,8 @@ fn near_pairs(body: &Body, state: &mut SelfBody) {
     pairs_by_triangle(triangles.len(), state);
 }
 
-/// Each triangle's near pairs, as offsets into an index of `near` (a counting sort: each pair
-/// under both its triangles, in the order of `near`).
+/// Each triangle's near pairs, as offsets into an index of `near` (each pair under both its
+/// triangles, in the order of `near`); none when there is no room.
 fn pairs_by_triangle(triangles: usize, state: &mut SelfBody) {
     let SelfBody {
         near,
@@ -506,37 +511,37 @@ fn pairs_by_triangle(triangles: usize, state: &mut SelfBody) {
         pair_bits,
         ..
     } = state;
-    pair_offsets.clear();
-    pair_index.clear();
     pair_bits.clear();
-    if triangles + 1 > pair_offsets.capacity()
-        || 2 * near.len() > pair_index.capacity()
-        || near.len().div_ceil(64) > pair_bits.capacity()
+    let by_triangle = near
+        .iter()
+        .enumerate()
+        .flat_map(|(p, &(a, b))| [(a, p as u32), (b, p as u32)]);
+    if compressed(triangles, by_triangle, pair_offsets, pair_index)
+        && near.len().div_ceil(64) <= pair_bits.capacity()
     {
-        return;
+        pair_bits.resize(near.len().div_ceil(64), 0);
+    } else {
+        pair_offsets.clear();
     }
-    pair_offsets.resize(triangles + 1, 0);
-    for &(ta, tb) in near.iter() {
-        pair_offsets[ta as usize + 1] += 1;
-        pair_offsets[tb as usize + 1] += 1;
-    }
-    for t in 0..triangles {
-        pair_offsets[t + 1] += pair_offsets[t];
-    }
-    pair_index.resize(2 * near.len(), 0);
-    // (Each triangle's next free place, kept in its own offset until the pass is done.)
-    for (p, &(ta, tb)) in near.iter().enumerate() {
-        for t in [ta, tb] {
-            let at = &mut pair_offsets[t as usize];
-            pair_index[*at as usize] = p as u32;
-            *at += 1;
+}
+
+/// Whether `state` has an index of each of its `triangles` triangles' near pairs (see
+/// [`pairs_by_triangle`]).
+fn indexed(state: &SelfBody, triangles: usize) -> bool {
+    state.pair_offsets.len() == triangles + 1
+        && state.pair_bits.len() == state.near.len().div_ceil(64)
+}
+
+/// Visits the near pairs whose bits are set, lowest first, clearing the bits.
+fn take_bits(state: &mut SelfBody, mut visit: impl FnMut(&mut SelfBody, usize)) {
+    for word in 0..state.pair_bits.len() {
+        let mut bits = std::mem::take(&mut state.pair_bits[word]);
+        while bits != 0 {
+            let p = word * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            visit(state, p);
         }
     }
-    for t in (1..=triangles).rev() {
-        pair_offsets[t] = pair_offsets[t - 1];
-    }
-    pair_offsets[0] = 0;
-    pair_bits.resize(near.len().div_ceil(64), 0);
 }
 
 /// A node's displacement over the tick relative to the body's nodes' mean displacement (as the
@@ -582,9 +587,7 @@ fn motion_and_bend(body: &Body, state: &mut SelfBody) {
         ]
     }));
     smoothness(body, state);
-    let indexed = state.pair_offsets.len() == s.triangles.len() + 1
-        && state.pair_bits.len() == state.near.len().div_ceil(64);
-    if !indexed {
+    if !indexed(state, s.triangles.len()) {
         for p in 0..state.near.len() {
             let (ta, tb) = state.near[p];
             let smooth = |t: u32| state.smooth.get(t as usize) == Some(&true);
@@ -609,18 +612,13 @@ fn motion_and_bend(body: &Body, state: &mut SelfBody) {
             state.pair_bits[p as usize / 64] |= 1 << (p % 64);
         }
     }
-    for word in 0..state.pair_bits.len() {
-        let mut bits = std::mem::take(&mut state.pair_bits[word]);
-        while bits != 0 {
-            let p = word * 64 + bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let (ta, tb) = state.near[p];
-            if bent(body, state, ta, tb) {
-                state.is_bent[p] = true;
-                state.bent.push((ta, tb));
-            }
+    take_bits(state, |state, p| {
+        let (ta, tb) = state.near[p];
+        if bent(body, state, ta, tb) {
+            state.is_bent[p] = true;
+            state.bent.push((ta, tb));
         }
-    }
+    });
 }
 
 /// Which triangles are *smooth*: each of their nodes' triangles within a quarter of [`BEND`] of
@@ -669,7 +667,8 @@ fn smoothness(body: &Body, state: &mut SelfBody) {
 
 /// After a round of the net moved the nodes whose mark in `answered` is `round` or more: their
 /// relative displacements and their triangles' normals at the end again, and the near pairs of
-/// those triangles that are bent now added to the bent (a pair bent earlier in the tick stays).
+/// those triangles that are bent now added to the bent (a pair bent earlier in the tick stays,
+/// unless the body was listed again since: its bent pairs were all found again then).
 fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize) {
     let s = &body.surface;
     let n = s.position_in_world.len();
@@ -687,8 +686,7 @@ fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize)
     let mark = state.touch_mark;
     let mut any = false;
     // (Each triangle's pairs are found through it when it has an index of them.)
-    let indexed = state.pair_offsets.len() == s.triangles.len() + 1
-        && state.pair_bits.len() == state.near.len().div_ceil(64);
+    let indexed = indexed(state, s.triangles.len());
     for (v, &answer) in answered.iter().enumerate() {
         if (answer as usize) < round {
             continue;
@@ -722,13 +720,7 @@ fn bend_moved(body: &Body, state: &mut SelfBody, answered: &[u32], round: usize)
         }
     };
     if indexed {
-        for word in 0..state.pair_bits.len() {
-            let mut bits = std::mem::take(&mut state.pair_bits[word]);
-            while bits != 0 {
-                look(state, word * 64 + bits.trailing_zeros() as usize);
-                bits &= bits - 1;
-            }
-        }
+        take_bits(state, look);
     } else {
         for p in 0..state.near.len() {
             let (ta, tb) = state.near[p];
@@ -849,5 +841,82 @@ mod tests {
                 .collect();
             assert_eq!(indexed, wanted, "triangle {t}");
         }
+    }
+
+    /// On a crumpled body, the bent pairs found through the index (of the triangles that are not
+    /// smooth; of the triangles a round moved) are those a sweep of every near pair finds, in the
+    /// same order.
+    #[test]
+    fn the_index_finds_the_bent_pairs_a_sweep_finds() {
+        let params = BodyParams {
+            self_contact: true,
+            ..BodyParams::default()
+        };
+        let mut body = Body::new("b", &icosphere(0.03, 2), &params, &Placement::default());
+        // The upper half crumpled, the lower half round (smooth).
+        let crumple = |k: usize, p: &Vec3, by: f64| {
+            let wobble = ((k * 7919) % 17) as f64 / 16.0 - 0.5;
+            if p.z > 0.005 {
+                p * (1.0 + by * wobble)
+            } else {
+                *p
+            }
+        };
+        let s = &mut body.surface;
+        for k in 0..s.position_in_world.len() {
+            let start = crumple(k, &s.position_in_world[k], 0.2);
+            s.next_position_in_world[k] = crumple(k + 3, &start, 0.05);
+            s.position_in_world[k] = start;
+        }
+        let mut pairs = SelfPairs::new(std::slice::from_ref(&body), 0);
+        let mut bvh = TriangleBvh::with_capacity(body.mesh_capacity().1);
+        pairs.update(0, &body, &mut bvh);
+        let state = &mut pairs.bodies[0];
+        assert!(indexed(state, body.surface.triangles.len()));
+        let through_index = (state.bent.to_vec(), state.is_bent.to_vec());
+        assert!(
+            through_index.0.len() > 50 && through_index.0.len() < state.near.len() / 2,
+            "{} of {} bent: the case tells nothing",
+            through_index.0.len(),
+            state.near.len()
+        );
+        assert!(state.pair_bits.iter().all(|&w| w == 0), "bits left set");
+        println!(
+            "{} of {} near pairs bent; {} of {} triangles smooth",
+            through_index.0.len(),
+            state.near.len(),
+            state.smooth.iter().filter(|&&s| s).count(),
+            state.smooth.len()
+        );
+        assert!(state.smooth.iter().any(|&s| s) && !state.smooth.iter().all(|&s| s));
+        // A round moves some nodes: their triangles' pairs are looked at again.
+        let n = body.node_count();
+        let answered: Vec<u32> = (0..n).map(|v| u32::from(v % 5 == 0)).collect();
+        for k in (0..n).step_by(5) {
+            body.surface.next_position_in_world[k] =
+                (body.surface.position_in_world[k] + body.surface.next_position_in_world[k]) / 2.0;
+        }
+        let mut with_index = state.clone();
+        bend_moved(&body, &mut with_index, &answered, 1);
+        assert!(
+            with_index.bent.len() > through_index.0.len(),
+            "the round changed nothing"
+        );
+        // The same without the index: a sweep of every near pair.
+        let mut swept = state.clone();
+        swept.pair_offsets.clear();
+        assert!(!indexed(&swept, body.surface.triangles.len()));
+        bend_moved(&body, &mut swept, &answered, 1);
+        assert_eq!(with_index.bent, swept.bent);
+        assert_eq!(with_index.is_bent, swept.is_bent);
+        let mut swept = state.clone();
+        swept.pair_offsets.clear();
+        motion_and_bend(&body, &mut swept);
+        let mut again = state.clone();
+        motion_and_bend(&body, &mut again);
+        assert_eq!(again.bent, swept.bent);
+        assert_eq!(again.is_bent, swept.is_bent);
+        // (The moved nodes changed the bends: not those of the start.)
+        assert_ne!(again.bent.to_vec(), through_index.0);
     }
 }
