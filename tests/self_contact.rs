@@ -232,7 +232,9 @@ fn self_contact_with_cutting_or_tearing_is_refused() {
 /// to 0.42 J; with it, no crossing, no node of one inside the other, and the largest gain in a tick
 /// is 8.0e-4 J. That gain is not zero: between bodies the net gives a collision's nodes their mean
 /// velocity (for momentum), which feeds a contact it holds at every tick (README, Contact between
-/// bodies, "Energy after a fold"); asserted below 1e-3 J.
+/// bodies, "Energy after a fold"); asserted below 1e-3 J. That bound holds for this drop, not in
+/// general: over 18 drops (2026-12-05, later) a tick gained up to 2.7e-2 J, and this drop with the
+/// far pairs tested in another order 2.3e-2 J.
 #[test]
 fn a_ball_dropped_on_another_with_self_contact_enters_neither_it_nor_itself() {
     let run = |self_contact: bool| {
