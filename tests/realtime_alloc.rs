@@ -303,20 +303,7 @@ fn self_contact_allocates_nothing_on_the_tick() {
     // 0.32 s, its top meets its bottom, its far pairs are listed again many times; then
     // probe_refine.toml with self-contact on its organ, whose topology the probe's subdivision
     // changes (the near pairs listed again).
-    let ball = common::scene(
-        r#"
-        [world]
-        gravity = [0.0, 0.0, -9.81]
-        [[body]]
-        name = "ball"
-        mesh = { ellipsoid = { radii = [0.02, 0.02, 0.02], subdivisions = 3 } }
-        position = [0.0, 0.0, 0.5]
-        self_contact = true
-        [[obstacle]]
-        name = "table"
-        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-        "#,
-    );
+    let ball = common::dropped_ball(true);
     let mut refine = load_scene(&common::repo_root().join("scenes/probe_refine.toml")).unwrap();
     refine.bodies[0].params.self_contact = true;
     for (name, scene, ticks) in [("ball", ball, 800), ("probe_refine", refine, 7000)] {

@@ -74,20 +74,7 @@ fn assert_held(seen: &Seen, what: &str) {
 /// A ball of the default parameters (radius 2 cm) dropped from 0.5 m onto the table: it lands at
 /// 3.1 m/s and flattens until its top meets its bottom.
 fn dropped_ball(self_contact: bool) -> World {
-    World::from_scene(&common::scene(&format!(
-        r#"
-        [world]
-        gravity = [0.0, 0.0, -9.81]
-        [[body]]
-        name = "ball"
-        mesh = {{ ellipsoid = {{ radii = [0.02, 0.02, 0.02], subdivisions = 3 }} }}
-        position = [0.0, 0.0, 0.5]
-        self_contact = {self_contact}
-        [[obstacle]]
-        name = "table"
-        plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
-        "#
-    )))
+    World::from_scene(&common::dropped_ball(self_contact))
 }
 
 /// Measured (2026-12-05): without self-contact the ball's top passes through its bottom at the
