@@ -16,7 +16,7 @@ use palpa::scene::{default_scene, load_scene};
 use palpa::world::World;
 
 /// (name in the file, scene path or `None` for the embedded default, integrator override, ticks)
-const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 12] = [
+const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 13] = [
     ("default_organ", None, None, 1000),
     ("probe_press", Some("scenes/probe_press.toml"), None, 1000),
     ("probe_refine", Some("scenes/probe_refine.toml"), None, 1000),
@@ -49,6 +49,7 @@ const CASES: [(&str, Option<&str>, Option<Integrator>, u64); 12] = [
     ("transection", Some("scenes/transection.toml"), None, 1500),
     ("plastic", Some("scenes/plastic.toml"), None, 4000),
     ("laparoscopy", Some("scenes/laparoscopy.toml"), None, 1000),
+    ("self_fold", Some("scenes/self_fold.toml"), None, 600),
 ];
 
 struct Fnv(u64);
