@@ -1269,7 +1269,13 @@ impl World {
                 sub_stepped,
                 dt,
             );
-            counters.bodies = resolve_body_collisions(&mut self.bodies, &self.origin, scratch, dt);
+            counters.bodies = resolve_body_collisions(
+                &mut self.bodies,
+                &self.origin,
+                &self.obstacles,
+                scratch,
+                dt,
+            );
             counters.bodies.candidate_pairs += response.candidate_pairs;
             counters.bodies.overflows += response.overflows;
             counters.bodies.contacts = response.contacts;

@@ -35,7 +35,9 @@ use crate::body::Body;
 use crate::collision::bvh::{TriangleBvh, owns_side, owns_vertex};
 use crate::collision::ccd::{CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact};
 use crate::collision::obstacle::Obstacle;
-use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_segment_distance};
+use crate::collision::tool::{
+    Aabb, closest_point_on_triangle, segment_segment_closest, segment_segment_distance,
+};
 use crate::contact::self_pairs::SelfPairs;
 use crate::contact::tool::NO_TOOL;
 
@@ -82,8 +84,16 @@ const ANCHOR_SLACK: f64 = 2.5e-5;
 /// Least ticks of the net between two takings of the anchors (see `CandidateCache::anchor`):
 /// bodies that keep moving take them, and find their least gaps, once in so many ticks.
 const ANCHOR_HELD: u64 = 8;
-/// Rounds of stop-short before the remaining collisions are frozen.
-const ROUNDS: usize = 4;
+/// Rounds of the collision net before the remaining collisions are frozen: the first
+/// [`IMPULSE_ROUNDS`] answer a collision with an inelastic impulse, the others by stopping short.
+const ROUNDS: usize = 8;
+/// Rounds of the collision net that answer a collision with an inelastic normal impulse on the
+/// pair's four nodes ([`impulse_apart`]); what they leave is stopped short.
+const IMPULSE_ROUNDS: usize = 4;
+/// Least gap (m) the net's impulse leaves between two primitives along their normal at the end of
+/// the tick: ten times the continuous query's precision (1 µm), far below the response's rest
+/// distance.
+const NET_GAP: f64 = 1e-5;
 /// Most rounds of freezing after them: freezing a pair's nodes at their start changes the
 /// trajectories of the triangles they belong to, which may meet another body's anew (its nodes
 /// moved); each such round freezes those too, until a round finds nothing (every node frozen, the
@@ -113,6 +123,12 @@ pub struct BodyContactCounters {
     /// Collisions still found after the rounds ran out, answered by freezing their nodes at their
     /// start-of-tick positions.
     pub frozen: u32,
+    /// Collisions answered by an inelastic impulse (the others of `collisions` were stopped short
+    /// or frozen).
+    pub impulses: u32,
+    /// Rounds of the net after which an impulse's nodes left the bounds or lists the round was
+    /// tested with, and the bodies' bounds and lists were brought up to date.
+    pub relisted_rounds: u32,
     /// Broad-phase queries that filled the pair list: the pairs it holds are answered by freezing,
     /// pairs beyond its capacity are not tested (counted so it is never silent).
     pub overflows: u32,
@@ -397,6 +413,9 @@ pub struct BodyContactScratch {
     self_pairs: SelfPairs,
     /// Each body's largest node displacement over the tick (m), at least.
     max_motion: Room<f64>,
+    /// Collisions the net's current run answered by an impulse (which may move an end beyond its
+    /// trajectory).
+    impulses: u32,
     /// Per body and node, 1 + the last round of the collision net that answered a collision of
     /// the node this tick (0: none), with room for the body's most nodes (see
     /// [`worth_testing`]).
@@ -566,6 +585,7 @@ impl BodyContactScratch {
             cache: CandidateCache::new(bodies, count, 3 * spare_triangles + 3),
             self_pairs: SelfPairs::new(bodies, spare),
             max_motion: Room::with_capacity(count),
+            impulses: 0,
             marked: vec![false; answered.len()],
             answered,
             forces: vec![Vec3::zeros(); count],
@@ -738,16 +758,28 @@ fn mark_moved(moved: &mut [bool], nodes: &[NodeRef; 4]) {
     }
 }
 
-/// Tests one vertex–face or edge–edge pair; answers a collision by stopping its nodes short (or,
-/// when `freeze`, at their start). Returns true when it answered a collision.
+/// How the collision net answers the collisions of a round.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Answer {
+    /// An inelastic normal impulse on the four nodes ([`impulse_apart`]), or stop short where it
+    /// cannot.
+    Impulse,
+    /// Stop the nodes short of the time of impact, with their mean velocity.
+    StopShort,
+    /// Stop the nodes at their start.
+    Freeze,
+}
+
+/// Tests one vertex–face or edge–edge pair; answers a collision as `answer` says. Returns how it
+/// answered (`None`: no collision).
 fn test_primitive(
     bodies: &mut [Body],
     nodes: [NodeRef; 4],
     (vertex_face, most, common): (bool, f64, &Vec3),
-    settings: &CcdSettings,
-    freeze: bool,
+    (settings, obstacles): (&CcdSettings, &[Obstacle]),
+    answer: Answer,
     dt: f64,
-) -> bool {
+) -> Option<Answer> {
     let s = nodes.map(|r| start_of(bodies, r));
     // First, without square roots or closest points, a pair whose start distance is beyond what
     // the two bodies' nodes move at most: the distance of the vertex to the face's plane (between
@@ -760,7 +792,7 @@ fn test_primitive(
     };
     let along = offset.dot(&across);
     if along * along > most * most * across.norm_squared() * (1.0 + BOUND_ROUNDING) {
-        return false;
+        return None;
     }
     let e = nodes.map(|r| end_of(bodies, r));
     // Two primitives that start farther apart than their nodes move over the tick cannot meet:
@@ -776,7 +808,7 @@ fn test_primitive(
     };
     let nearest = reach + FILTER_MARGIN;
     if along * along > nearest * nearest * across.norm_squared() * (1.0 + BOUND_ROUNDING) {
-        return false;
+        return None;
     }
     let start_distance = if vertex_face {
         (closest_point_on_triangle(&s[0], &s[1], &s[2], &s[3]) - s[0]).norm()
@@ -784,7 +816,7 @@ fn test_primitive(
         segment_segment_distance(&s[0], &s[1], &s[2], &s[3])
     };
     if start_distance > reach + FILTER_MARGIN {
-        return false;
+        return None;
     }
     let hit = if vertex_face {
         vertex_face_time_of_impact(
@@ -795,11 +827,24 @@ fn test_primitive(
             &s[0], &s[1], &s[2], &s[3], &e[0], &e[1], &e[2], &e[3], settings,
         )
     };
-    let Some(hit) = hit else { return false };
+    let Some(hit) = hit else { return None };
     if hit.time_of_impact == 0.0 && parting(bodies, &nodes, vertex_face) {
         // Touching at the start and parting: left alone, so bodies can separate.
-        return false;
+        return None;
     }
+    if answer == Answer::Impulse
+        && impulse_apart(
+            bodies,
+            &nodes,
+            vertex_face,
+            (&s, &e),
+            (hit.time_of_impact, obstacles),
+            dt,
+        )
+    {
+        return Some(Answer::Impulse);
+    }
+    let freeze = answer == Answer::Freeze;
     let fraction = if freeze {
         0.0
     } else {
@@ -825,7 +870,127 @@ fn test_primitive(
     for r in nodes {
         stop_at(bodies, r, fraction, together, dt);
     }
-    true
+    Some(if freeze {
+        Answer::Freeze
+    } else {
+        Answer::StopShort
+    })
+}
+
+/// Answers a collision of the pair `nodes` (start and end positions `s`, `e`; time of impact
+/// `toi`, a fraction of the tick) with an impulse along the pair's normal at the time of impact, on
+/// the nodes' velocities and end positions alike (a velocity change Δv moves the end by Δt Δv): the
+/// pair's relative normal displacement over the tick may close its gap at the start down to
+/// [`NET_GAP`] and no more. The impulse on each node is its weight in the pair (the vertex 1, the
+/// face's nodes minus their barycentric weights at the point of impact; the edges' nodes their
+/// weights at the nearest points, one edge's minus) times its inverse mass, so the four nodes'
+/// momentum does not change; it only slows the approach (never pushes apart faster than the nodes
+/// came together), so their kinetic energy does not grow. A pair that starts closer than
+/// [`NET_GAP`] is parted to it by the same weights on the end positions only (no velocity: no
+/// energy). Returns false, moving nothing, where the normal is not defined (degenerate
+/// primitives, parallel edges met end on), where a tool holds every node, where the impulse would
+/// move a node more than [`MAX_AMPLIFICATION`] times the change of the gap, or where the linear
+/// estimate sees no approach to answer: the caller stops the nodes short instead.
+fn impulse_apart(
+    bodies: &mut [Body],
+    nodes: &[NodeRef; 4],
+    vertex_face: bool,
+    (s, e): (&[Vec3; 4], &[Vec3; 4]),
+    (toi, obstacles): (f64, &[Obstacle]),
+    dt: f64,
+) -> bool {
+    let p: [Vec3; 4] = std::array::from_fn(|k| s[k] + (e[k] - s[k]) * toi);
+    let (weights, normal) = if vertex_face {
+        let q = closest_point_on_triangle(&p[0], &p[1], &p[2], &p[3]);
+        let Some(b) = barycentric(&q, &p[1], &p[2], &p[3]) else {
+            return false;
+        };
+        (
+            [1.0, -b[0], -b[1], -b[2]],
+            (p[2] - p[1]).cross(&(p[3] - p[1])),
+        )
+    } else {
+        let (a, b) = segment_segment_closest(&p[0], &p[1], &p[2], &p[3]);
+        let w = [1.0 - a, a, b - 1.0, -b];
+        let (da, db) = (p[1] - p[0], p[3] - p[2]);
+        let cross = da.cross(&db);
+        // Edges nearly parallel: the direction between their nearest points at the start.
+        let normal = if cross.norm_squared() > 1e-6 * da.norm_squared() * db.norm_squared() {
+            cross
+        } else {
+            (0..4).map(|k| s[k] * w[k]).sum::<Vec3>()
+        };
+        (w, normal)
+    };
+    let length = normal.norm();
+    if !(length > f64::MIN_POSITIVE) || !length.is_finite() {
+        return false;
+    }
+    let mut n = normal / length;
+    let mut gap = (0..4).map(|k| s[k].dot(&n) * weights[k]).sum::<f64>();
+    let mut approach = (0..4)
+        .map(|k| (e[k] - s[k]).dot(&n) * weights[k])
+        .sum::<f64>();
+    // The side the pair starts on (where it starts within the query's precision of touching, the
+    // side it comes from).
+    if gap < 0.0 && gap.abs() > 0.1 * NET_GAP || (gap.abs() <= 0.1 * NET_GAP && approach > 0.0) {
+        n = -n;
+        gap = -gap;
+        approach = -approach;
+    }
+    // The relative normal displacement kept: the approach, down to the gap less NET_GAP.
+    let kept = approach.max(-(gap - NET_GAP).max(0.0));
+    // And the end positions parted up to NET_GAP, with no velocity.
+    let parted = (NET_GAP - (gap + kept)).max(0.0);
+    let (by_velocity, by_position) = (kept - approach, parted);
+    if !(by_velocity + by_position > 0.0) || !(by_velocity + by_position).is_finite() {
+        return false;
+    }
+    let mut inverse = nodes.map(|r| inverse_mass_of(bodies, r));
+    // A node the impulse would move towards an obstacle it ends within the skin of is held by
+    // it (the obstacle takes its share, as a tool does): taken as fixed, and the shares found again.
+    for _ in 0..4 {
+        let effective = (0..4)
+            .map(|k| weights[k] * weights[k] * inverse[k])
+            .sum::<f64>();
+        if !(effective > 0.0) || !effective.is_finite() {
+            return false;
+        }
+        if (0..4).any(|k| weights[k].abs() * inverse[k] > MAX_AMPLIFICATION * effective) {
+            return false;
+        }
+        let share: [f64; 4] = std::array::from_fn(|k| weights[k] * inverse[k] / effective);
+        let mut held = false;
+        for k in 0..4 {
+            if inverse[k] == 0.0 {
+                continue;
+            }
+            let towards = n * (share[k] * (by_velocity + by_position));
+            let end = end_of(bodies, nodes[k]) + towards;
+            if obstacles.iter().any(|o| {
+                o.shape
+                    .plane_within(&end, CONTACT_SKIN)
+                    .is_some_and(|plane| towards.dot(&plane.normal_in_world) < 0.0)
+            }) {
+                inverse[k] = 0.0;
+                held = true;
+            }
+        }
+        if held {
+            continue;
+        }
+        for k in 0..4 {
+            if inverse[k] == 0.0 {
+                continue;
+            }
+            let r = nodes[k];
+            let surface = &mut bodies[r.body].surface;
+            surface.velocity_in_world[r.node] += n * (share[k] * by_velocity / dt);
+            surface.next_position_in_world[r.node] += n * (share[k] * (by_velocity + by_position));
+        }
+        return true;
+    }
+    false
 }
 
 /// The mass-weighted mean velocity of a collision's nodes, `None` when a tool holds one of them.
@@ -915,6 +1080,7 @@ fn remember((remembered, dropped): (&mut Room<Remembered>, &mut u32), pair: Reme
 pub fn resolve_body_collisions(
     bodies: &mut [Body],
     group: &[usize],
+    obstacles: &[Obstacle],
     scratch: &mut BodyContactScratch,
     dt: f64,
 ) -> BodyContactCounters {
@@ -926,6 +1092,7 @@ pub fn resolve_body_collisions(
         }
     }
     let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
+    scratch.impulses = 0;
     // Bodies whose surface may not pass through itself, tested whether or not another is near.
     let self_on = (0..bodies.len()).any(|k| SelfPairs::on(bodies, k));
     if prepared == Prepared::NoneNear && !self_on {
@@ -975,7 +1142,7 @@ pub fn resolve_body_collisions(
                 bodies,
                 group,
                 (&scratch.bounds, &scratch.near),
-                false,
+                ListCall::Net,
                 &mut scratch.bvhs,
                 (&mut scratch.near_triangles, &mut scratch.found),
                 &mut counters,
@@ -1057,7 +1224,7 @@ pub fn resolve_body_collisions(
                         bodies,
                         scratch,
                         [(i, ta), (j, tb)],
-                        (most, Vec3::zeros()),
+                        (most, Vec3::zeros(), obstacles),
                         (round, skipping, freeze || !complete, false),
                         dt,
                     );
@@ -1115,7 +1282,11 @@ pub fn resolve_body_collisions(
                     bodies,
                     scratch,
                     [(k, ta), (k, tb)],
-                    (2.0 * motion + FILTER_MARGIN, scratch.self_pairs.shift(k)),
+                    (
+                        2.0 * motion + FILTER_MARGIN,
+                        scratch.self_pairs.shift(k),
+                        obstacles,
+                    ),
                     (round, skipping, freeze || !complete, true),
                     dt,
                 );
@@ -1127,6 +1298,38 @@ pub fn resolve_body_collisions(
         }
         if answered == 0 {
             break;
+        }
+        // Impulses may have moved ends beyond the trajectories the round's bounds, motion bounds
+        // and lists were made for (stopping short only shortens them): all made again for the
+        // next round. The pairs the next round passes over are still those none of whose nodes
+        // moved: their trajectories are the first round's, which had sound lists.
+        let impulses = std::mem::take(&mut scratch.impulses);
+        counters.impulses += impulses;
+        if impulses > 0 && round < ROUNDS + FREEZE_ROUNDS {
+            counters.relisted_rounds += 1;
+            if scratch.find_bounds(bodies, group) {
+                for (k, answered) in scratch.answered.iter_mut().enumerate() {
+                    // A body near another only now: none of its nodes was answered yet.
+                    let n = bodies.get(k).map_or(0, Body::node_count);
+                    if scratch.near.get(k) == Some(&true) && answered.len() != n {
+                        answered.clear();
+                        if n <= answered.capacity() {
+                            answered.resize(n, 0);
+                        } else {
+                            skipping = false;
+                        }
+                    }
+                }
+                scratch.cache.list(
+                    bodies,
+                    group,
+                    (&scratch.bounds, &scratch.near),
+                    ListCall::NetAgain,
+                    &mut scratch.bvhs,
+                    (&mut scratch.near_triangles, &mut scratch.found),
+                    &mut counters,
+                );
+            }
         }
         // A body whose stops this round took a node's end out of its far listing's slack: listed
         // again, and all its pairs tested in the next round (after the last round there is none:
@@ -1173,7 +1376,7 @@ fn test_triangle_pair(
     bodies: &mut [Body],
     scratch: &mut BodyContactScratch,
     [(i, ta), (j, tb)]: [(usize, u32); 2],
-    (most, common): (f64, Vec3),
+    (most, common, obstacles): (f64, Vec3, &[Obstacle]),
     (round, skipping, overflow_freeze, every): (usize, bool, bool, bool),
     dt: f64,
 ) -> u32 {
@@ -1226,7 +1429,7 @@ fn test_triangle_pair(
                 bodies,
                 scratch,
                 (nodes, true),
-                (most, &common),
+                (most, &common, obstacles),
                 (round, skipping, overflow_freeze),
                 dt,
             );
@@ -1248,7 +1451,7 @@ fn test_triangle_pair(
                 bodies,
                 scratch,
                 (nodes, false),
-                (most, &common),
+                (most, &common, obstacles),
                 (round, skipping, overflow_freeze),
                 dt,
             );
@@ -1266,21 +1469,32 @@ fn test_and_answer(
     bodies: &mut [Body],
     scratch: &mut BodyContactScratch,
     (nodes, vertex_face): ([NodeRef; 4], bool),
-    (most, common): (f64, &Vec3),
+    (most, common, obstacles): (f64, &Vec3, &[Obstacle]),
     (round, skipping, overflow_freeze): (usize, bool, bool),
     dt: f64,
 ) -> u32 {
     if !worth_testing(&scratch.answered, &nodes, round, skipping) {
         return 0;
     }
-    let hit = test_primitive(
+    let answer = if overflow_freeze {
+        Answer::Freeze
+    } else if round < IMPULSE_ROUNDS {
+        Answer::Impulse
+    } else {
+        Answer::StopShort
+    };
+    let answered = test_primitive(
         bodies,
         nodes,
         (vertex_face, most, common),
-        &scratch.settings,
-        overflow_freeze,
+        (&scratch.settings, obstacles),
+        answer,
         dt,
     );
+    // (An impulse may move an end beyond its trajectory: the round's bounds and lists are
+    // brought up to date before the next.)
+    scratch.impulses += u32::from(answered == Some(Answer::Impulse));
+    let hit = answered.is_some();
     if hit {
         mark_moved(&mut scratch.moved, &nodes);
         remember(
@@ -2270,7 +2484,7 @@ pub fn respond_to_body_contacts(
         bodies,
         group,
         (&scratch.bounds, &scratch.near),
-        true,
+        ListCall::Response,
         &mut scratch.bvhs,
         (&mut scratch.near_triangles, &mut scratch.found),
         &mut counters,
@@ -3316,20 +3530,25 @@ impl CandidateCache {
     /// pairs listed in part, and the near pairs not listed yet, are listed from the hierarchies
     /// refitted to the references (grown by their margins). The hierarchies are the references':
     /// this tick's boxes come from [`TriangleBoxes`].
+    ///
+    /// `call` says who calls: the response (first of the tick), the net's first round, or the net
+    /// between two rounds after impulses moved ends ([`ListCall::NetAgain`]: the anchors'
+    /// excursions are measured again, the anchors not taken again, the tick not counted).
     #[allow(clippy::too_many_arguments)]
     fn list(
         &mut self,
         bodies: &[Body],
         group: &[usize],
         (bounds, near): (&[Aabb], &[bool]),
-        first_of_tick: bool,
+        call: ListCall,
         bvhs: &mut [TriangleBvh],
         (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
         counters: &mut BodyContactCounters,
     ) {
         let n = bodies.len().min(self.slots);
         let slots = self.slots;
-        if !first_of_tick {
+        let first_of_tick = call == ListCall::Response;
+        if call == ListCall::Net {
             self.net_ticks += 1;
         }
         for k in 0..n {
@@ -3371,7 +3590,7 @@ impl CandidateCache {
         // both anchors): taken again when one is not for its body's topology or was left by more
         // than its slack, at most every [`ANCHOR_HELD`] ticks (bodies that move on have no use for
         // them; an anchor left by more is still sound, only looser).
-        if !first_of_tick {
+        if call == ListCall::Net {
             // (Infinite for an anchor that does not hold for the body's topology, or none.)
             let wanted = (0..n).any(|k| near[k] && self.anchor_excursion[k] > ANCHOR_SLACK);
             if wanted
@@ -3522,6 +3741,17 @@ impl CandidateCache {
         }
         self.current = 1 - self.current;
     }
+}
+
+/// Who asks [`CandidateCache::list`] to bring the lists up to date.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ListCall {
+    /// The response, first of the tick.
+    Response,
+    /// The collision net's first round.
+    Net,
+    /// The collision net between two rounds, after impulses moved ends.
+    NetAgain,
 }
 
 /// Each body's triangles' boxes over this tick (or net round), taken when first asked for and kept
@@ -4138,7 +4368,7 @@ mod tests {
         );
         assert!(response.contacts > 0, "{response:?}");
         assert!(scratch.moved(0) && scratch.moved(1) && !scratch.moved(2));
-        resolve_body_collisions(&mut bodies, &group, &mut scratch, dt);
+        resolve_body_collisions(&mut bodies, &group, &[], &mut scratch, dt);
         assert!(scratch.moved(0) && scratch.moved(1) && !scratch.moved(2));
         // No node of the far body moved.
         let s = &bodies[2].surface;
