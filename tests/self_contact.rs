@@ -99,11 +99,22 @@ fn a_soft_ball_dropped_on_the_table_does_not_pass_through_itself() {
     // The case is one where the surface does fold through itself.
     assert!(without.crossed_samples > 0 && without.most_crossings > 100);
     assert!(with.collisions > 0, "self-contact never answered");
-    // At 3.1 m/s a node stopped short leaves its centred trajectory by more than the far listing's
-    // slack: the body is listed again between rounds (37 times, measured), and every tick ends
-    // with a listing that holds (without listing again, 25 ticks did not).
-    assert!(with.listed_again > 0, "the case no longer leaves the slack");
     assert_held(&with, "the ball");
+    // A node the net moves may leave its centred trajectory by more than the far listing's
+    // slack: the body is then listed again between rounds, and every tick ends with a listing
+    // that holds. At 3.1 m/s a node stopped short did so 37 times (without listing again, 25
+    // ticks did not hold); the net's impulses (2026-12-06) leave it less often: not at all from
+    // 0.5 m, twice from 3 m (7.7 m/s at the landing), the case that keeps the path tested.
+    let mut from_high = World::from_scene(&common::scene(
+        &common::scene_text_of_dropped_ball(true).replace("0.5]", "3.0]"),
+    ));
+    let high = run(&mut from_high, 1200, 5);
+    println!(
+        "from 3 m: {} crossed, {} net collisions, listed again {} times",
+        high.crossed_samples, high.collisions, high.listed_again
+    );
+    assert!(high.listed_again > 0, "the case no longer leaves the slack");
+    assert_held(&high, "the ball dropped from 3 m");
 }
 
 /// The same bits on every run, and from a world cloned mid-run.
@@ -281,4 +292,49 @@ fn a_ball_dropped_on_another_with_self_contact_enters_neither_it_nor_itself() {
     assert_eq!(crossed, 0);
     assert_eq!(overflows, 0);
     assert!(rise < 1e-6, "the energy rose by {rise} J in a tick");
+}
+
+/// Self-contact keeps the body's momentum: the ball of `dropped_ball` (0.5 m, lands at 3.1 m/s)
+/// on a frictionless table, dropped straight down, 2 s. Nothing outside the body pushes it
+/// sideways, so its horizontal momentum must stay what it was: zero. The net used to stop a fold's
+/// nodes with their own shortened displacements' velocities, which does not keep momentum: the
+/// ball left its landing with 0.19 N s of horizontal momentum (of 1.6 N s it lands with) and
+/// glided off (2026-12-06). Its inelastic impulses keep the four nodes' momentum; the table takes
+/// the share along its normal of a node it holds. Measured (2026-12-06): at most 1.1e-3 N s over
+/// the 2 s, the centre 0.8 mm off its axis; asserted below 1e-2 N s, and no crossing.
+#[test]
+fn a_ball_folding_on_itself_on_a_frictionless_table_keeps_its_horizontal_momentum() {
+    let text = format!(
+        "{}\nfriction = 0.0\nstatic_friction = 0.0\n",
+        include_str!("../scenes/self_fold.toml")
+            .lines()
+            .filter(|l| !l.starts_with("friction") && !l.starts_with("static_friction"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    let mut world = World::from_scene(&common::scene(&text));
+    assert!(
+        world.bodies[0].params.self_contact_on(),
+        "the shipped scene has self-contact on"
+    );
+    let (mut most, mut collisions, mut crossed) = (0.0f64, 0u64, 0);
+    for tick in 1..=2000 {
+        world.step();
+        collisions += u64::from(world.counters.bodies.collisions);
+        let b = &world.bodies[0];
+        let p = common::surface_momentum(b) + b.rigid.velocity_in_world * b.rigid.mass;
+        most = most.max((p.x * p.x + p.y * p.y).sqrt());
+        if tick % 20 == 0 {
+            crossed += common::self_crossings(b);
+        }
+    }
+    let centre = world.bodies[0].rigid.position_in_world;
+    println!(
+        "self-folding ball on a frictionless table: most horizontal momentum {most:.3e} N s, \
+         centre {:.2} mm off its axis after 2 s, {collisions} net collisions, {crossed} crossings",
+        (centre.x * centre.x + centre.y * centre.y).sqrt() * 1e3
+    );
+    assert!(collisions > 0, "the ball never folded onto itself");
+    assert_eq!(crossed, 0);
+    assert!(most < 1e-2, "horizontal momentum {most} N s");
 }

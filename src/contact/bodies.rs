@@ -948,35 +948,51 @@ fn impulse_apart(
     }
     let mut inverse = nodes.map(|r| inverse_mass_of(bodies, r));
     // A node the impulse would move towards an obstacle it ends within the skin of is held by
-    // it (the obstacle takes its share, as a tool does): taken as fixed, and the shares found again.
-    for _ in 0..4 {
+    // that obstacle's surface: it moves along the surface only (the obstacle takes the share along
+    // its normal, as a frictionless floor does); a node two surfaces hold is fixed (as a tool's).
+    // The shares are then found again for the directions each node may move in.
+    let mut held: [Option<Vec3>; 4] = [None; 4];
+    let free_direction = |k: usize, held: &[Option<Vec3>; 4]| match held[k] {
+        Some(m) => n - m * m.dot(&n),
+        None => n,
+    };
+    for _ in 0..8 {
+        let direction: [Vec3; 4] = std::array::from_fn(|k| free_direction(k, &held));
         let effective = (0..4)
-            .map(|k| weights[k] * weights[k] * inverse[k])
+            .map(|k| weights[k] * weights[k] * inverse[k] * direction[k].dot(&n))
             .sum::<f64>();
         if !(effective > 0.0) || !effective.is_finite() {
             return false;
         }
-        if (0..4).any(|k| weights[k].abs() * inverse[k] > MAX_AMPLIFICATION * effective) {
+        let share: [f64; 4] = std::array::from_fn(|k| weights[k] * inverse[k] / effective);
+        if (0..4).any(|k| share[k].abs() * direction[k].norm() > MAX_AMPLIFICATION) {
             return false;
         }
-        let share: [f64; 4] = std::array::from_fn(|k| weights[k] * inverse[k] / effective);
-        let mut held = false;
+        let mut again = false;
         for k in 0..4 {
             if inverse[k] == 0.0 {
                 continue;
             }
-            let towards = n * (share[k] * (by_velocity + by_position));
+            let towards = direction[k] * (share[k] * (by_velocity + by_position));
             let end = end_of(bodies, nodes[k]) + towards;
-            if obstacles.iter().any(|o| {
-                o.shape
-                    .plane_within(&end, CONTACT_SKIN)
-                    .is_some_and(|plane| towards.dot(&plane.normal_in_world) < 0.0)
-            }) {
-                inverse[k] = 0.0;
-                held = true;
+            for o in obstacles {
+                let Some(plane) = o.shape.plane_within(&end, CONTACT_SKIN) else {
+                    continue;
+                };
+                let m = plane.normal_in_world;
+                if towards.dot(&m) >= -1e-12 * towards.norm() {
+                    continue;
+                }
+                again = true;
+                if held[k].is_none() {
+                    held[k] = Some(m);
+                } else {
+                    inverse[k] = 0.0;
+                }
+                break;
             }
         }
-        if held {
+        if again {
             continue;
         }
         for k in 0..4 {
@@ -985,8 +1001,9 @@ fn impulse_apart(
             }
             let r = nodes[k];
             let surface = &mut bodies[r.body].surface;
-            surface.velocity_in_world[r.node] += n * (share[k] * by_velocity / dt);
-            surface.next_position_in_world[r.node] += n * (share[k] * (by_velocity + by_position));
+            surface.velocity_in_world[r.node] += direction[k] * (share[k] * by_velocity / dt);
+            surface.next_position_in_world[r.node] +=
+                direction[k] * (share[k] * (by_velocity + by_position));
         }
         return true;
     }

@@ -38,7 +38,12 @@ pub fn scene(text: &str) -> Scene {
 /// A ball of the default parameters (radius 2 cm, 642 nodes) 0.5 m above the table, with
 /// `self_contact` as given: it lands at 3.1 m/s and flattens until its top meets its bottom.
 pub fn dropped_ball(self_contact: bool) -> Scene {
-    scene(&format!(
+    scene(&scene_text_of_dropped_ball(self_contact))
+}
+
+/// The text of [`dropped_ball`]'s scene.
+pub fn scene_text_of_dropped_ball(self_contact: bool) -> String {
+    format!(
         r#"
         [world]
         gravity = [0.0, 0.0, -9.81]
@@ -51,7 +56,7 @@ pub fn dropped_ball(self_contact: bool) -> Scene {
         name = "table"
         plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
         "#
-    ))
+    )
 }
 
 /// Parses scene text from a directory.
