@@ -827,7 +827,7 @@ fn test_primitive(
             &s[0], &s[1], &s[2], &s[3], &e[0], &e[1], &e[2], &e[3], settings,
         )
     };
-    let Some(hit) = hit else { return None };
+    let hit = hit?;
     if hit.time_of_impact == 0.0 && parting(bodies, &nodes, vertex_face) {
         // Touching at the start and parting: left alone, so bodies can separate.
         return None;
@@ -923,7 +923,8 @@ fn impulse_apart(
         (w, normal)
     };
     let length = normal.norm();
-    if !(length > f64::MIN_POSITIVE) || !length.is_finite() {
+    let usable = length > f64::MIN_POSITIVE && length.is_finite();
+    if !usable {
         return false;
     }
     let mut n = normal / length;
@@ -943,7 +944,8 @@ fn impulse_apart(
     // And the end positions parted up to NET_GAP, with no velocity.
     let parted = (NET_GAP - (gap + kept)).max(0.0);
     let (by_velocity, by_position) = (kept - approach, parted);
-    if !(by_velocity + by_position > 0.0) || !(by_velocity + by_position).is_finite() {
+    let change = by_velocity + by_position;
+    if !(change.is_finite() && change > 0.0) {
         return false;
     }
     let mut inverse = nodes.map(|r| inverse_mass_of(bodies, r));
@@ -961,7 +963,7 @@ fn impulse_apart(
         let effective = (0..4)
             .map(|k| weights[k] * weights[k] * inverse[k] * direction[k].dot(&n))
             .sum::<f64>();
-        if !(effective > 0.0) || !effective.is_finite() {
+        if !(effective.is_finite() && effective > 0.0) {
             return false;
         }
         let share: [f64; 4] = std::array::from_fn(|k| weights[k] * inverse[k] / effective);
