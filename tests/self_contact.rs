@@ -300,8 +300,9 @@ fn a_ball_dropped_on_another_with_self_contact_enters_neither_it_nor_itself() {
 /// nodes with their own shortened displacements' velocities, which does not keep momentum: the
 /// ball left its landing with 0.19 N s of horizontal momentum (of 1.6 N s it lands with) and
 /// glided off (2026-12-06). Its inelastic impulses keep the four nodes' momentum; the table takes
-/// the share along its normal of a node it holds. Measured (2026-12-06): at most 1.1e-3 N s over
-/// the 2 s, the centre 0.8 mm off its axis; asserted below 1e-2 N s, and no crossing.
+/// the share of a node the impulse would push behind it (it holds such a node). Measured
+/// (2026-12-06): at most 3.4e-3 N s over the 2 s, the centre 4.5 mm off its axis; asserted below
+/// 1e-2 N s, and no crossing.
 #[test]
 fn a_ball_folding_on_itself_on_a_frictionless_table_keeps_its_horizontal_momentum() {
     let text = format!(

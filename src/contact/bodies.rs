@@ -949,52 +949,39 @@ fn impulse_apart(
         return false;
     }
     let mut inverse = nodes.map(|r| inverse_mass_of(bodies, r));
-    // A node the impulse would move towards an obstacle it ends within the skin of is held by
-    // that obstacle's surface: it moves along the surface only (the obstacle takes the share along
-    // its normal, as a frictionless floor does); a node two surfaces hold is fixed (as a tool's).
-    // The shares are then found again for the directions each node may move in.
-    let mut held: [Option<Vec3>; 4] = [None; 4];
-    let free_direction = |k: usize, held: &[Option<Vec3>; 4]| match held[k] {
-        Some(m) => n - m * m.dot(&n),
-        None => n,
-    };
-    for _ in 0..8 {
-        let direction: [Vec3; 4] = std::array::from_fn(|k| free_direction(k, &held));
+    // A node the impulse would move towards an obstacle and behind its surface is held by it
+    // (the obstacle takes its share, as a tool does): taken as fixed, and the shares found again.
+    // (Held when it ended within the skin, or held to the surface only and moved along it, the
+    // net met more pairs anew: over the 18 drops of two balls 2 951 and 3 163 frozen collisions
+    // against 595, and 0.022 and 0.016 J gained against 0.002.)
+    for _ in 0..4 {
         let effective = (0..4)
-            .map(|k| weights[k] * weights[k] * inverse[k] * direction[k].dot(&n))
+            .map(|k| weights[k] * weights[k] * inverse[k])
             .sum::<f64>();
         if !(effective.is_finite() && effective > 0.0) {
             return false;
         }
         let share: [f64; 4] = std::array::from_fn(|k| weights[k] * inverse[k] / effective);
-        if (0..4).any(|k| share[k].abs() * direction[k].norm() > MAX_AMPLIFICATION) {
+        if share.iter().any(|s| s.abs() > MAX_AMPLIFICATION) {
             return false;
         }
-        let mut again = false;
+        let mut held = false;
         for k in 0..4 {
             if inverse[k] == 0.0 {
                 continue;
             }
-            let towards = direction[k] * (share[k] * (by_velocity + by_position));
+            let towards = n * (share[k] * change);
             let end = end_of(bodies, nodes[k]) + towards;
-            for o in obstacles {
-                let Some(plane) = o.shape.plane_within(&end, CONTACT_SKIN) else {
-                    continue;
-                };
-                let m = plane.normal_in_world;
-                if towards.dot(&m) >= -1e-12 * towards.norm() {
-                    continue;
-                }
-                again = true;
-                if held[k].is_none() {
-                    held[k] = Some(m);
-                } else {
-                    inverse[k] = 0.0;
-                }
-                break;
+            if obstacles.iter().any(|o| {
+                o.shape
+                    .plane_within(&end, 0.0)
+                    .is_some_and(|plane| towards.dot(&plane.normal_in_world) < 0.0)
+            }) {
+                inverse[k] = 0.0;
+                held = true;
             }
         }
-        if again {
+        if held {
             continue;
         }
         for k in 0..4 {
@@ -1003,9 +990,8 @@ fn impulse_apart(
             }
             let r = nodes[k];
             let surface = &mut bodies[r.body].surface;
-            surface.velocity_in_world[r.node] += direction[k] * (share[k] * by_velocity / dt);
-            surface.next_position_in_world[r.node] +=
-                direction[k] * (share[k] * (by_velocity + by_position));
+            surface.velocity_in_world[r.node] += n * (share[k] * by_velocity / dt);
+            surface.next_position_in_world[r.node] += n * (share[k] * change);
         }
         return true;
     }
