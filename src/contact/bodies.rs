@@ -20,10 +20,14 @@
 //!    tick's (a held contact): the side's nodes are let down over a few ticks, not dropped at once.
 //! 2. The **net** ([`resolve_body_collisions`]): the triangle pairs whose boxes meet, and the
 //!    narrow phase tests each pair's vertices against the other's face (both ways) and
-//!    each edge against the other's edges, with the earliest time of impact. What collides stops
-//!    short of the impact, at 90 % of the (lower-bound) time of impact along its own trajectory, and
-//!    takes the velocity that brings it there. This repeats a few rounds, as stopping some nodes can
-//!    expose other pairs; what still collides after that is frozen at its start-of-tick position,
+//!    each edge against the other's edges, with the earliest time of impact. What collides takes an
+//!    inelastic impulse along the pair's normal at the impact, on its four nodes' velocities and
+//!    end positions together ([`impulse_apart`]: their momentum kept, no kinetic energy added);
+//!    after a round with impulses the bounds and lists are brought up to date, since an impulse may
+//!    move an end beyond its trajectory. This repeats a few rounds, as moving some nodes can expose
+//!    other pairs; then what still collides (or what the impulse cannot answer) stops short of the
+//!    impact, at 90 % of the (lower-bound) time of impact along its own trajectory, with the four
+//!    nodes' mean velocity, for a few rounds more; what still collides after that is frozen at its start-of-tick position,
 //!    where the previous tick left everything apart (in further rounds until nothing collides:
 //!    freezing some nodes changes their triangles' trajectories). Primitives that touch at the start of the tick
 //!    and separate over it are left alone, so bodies can part. Nodes held by a tool are moved by the
