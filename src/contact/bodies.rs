@@ -130,8 +130,9 @@ pub struct BodyContactCounters {
     /// Collisions answered by an inelastic impulse (the others of `collisions` were stopped short
     /// or frozen).
     pub impulses: u32,
-    /// Rounds of the net after which an impulse's nodes left the bounds or lists the round was
-    /// tested with, and the bodies' bounds and lists were brought up to date.
+    /// Rounds of the net that answered with impulses, after which the bodies' bounds, largest
+    /// motions and candidate lists were brought up to date (an impulse may move an end beyond the
+    /// trajectory they were made for).
     pub relisted_rounds: u32,
     /// Broad-phase queries that filled the pair list: the pairs it holds are answered by freezing,
     /// pairs beyond its capacity are not tested (counted so it is never silent).
