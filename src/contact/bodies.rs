@@ -1111,8 +1111,8 @@ pub fn resolve_body_collisions(
     let mut skipping = false;
     for round in 0..=ROUNDS + FREEZE_ROUNDS {
         let freeze = round >= ROUNDS;
-        // The bounds of the first round hold for the later ones: stopping short only shortens
-        // trajectories.
+        // The bounds of the first round hold for the later ones as long as they only stop short
+        // (which only shortens trajectories); after a round with impulses they are found again.
         if round == 0 {
             let any = if prepared == Prepared::Listed {
                 // The response's bounds with no margin, grown by the ends it moved: they hold
@@ -1147,7 +1147,8 @@ pub fn resolve_body_collisions(
         }
         if round == 0 {
             // The kept triangle pairs, checked again: the response moved nodes, which may have
-            // left their slack. Later rounds only shorten trajectories, within the same boxes.
+            // left their slack. Later rounds check them again after impulses (below); stops only
+            // shorten trajectories, within the same boxes.
             scratch.cache.list(
                 bodies,
                 group,
