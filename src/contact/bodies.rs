@@ -1075,6 +1075,17 @@ fn mark_answered(
     1
 }
 
+/// A body's marks of [`worth_testing`] for `n` nodes, none answered; false when there is no room
+/// for them (then every round tests every pair).
+fn clear_marks(answered: &mut Room<u32>, n: usize) -> bool {
+    answered.clear();
+    let fits = n <= answered.capacity();
+    if fits {
+        answered.resize(n, 0);
+    }
+    fits
+}
+
 /// Adds `pair` to the pairs the next tick's response remembers, or counts it when there is no room.
 fn remember((remembered, dropped): (&mut Room<Remembered>, &mut u32), pair: Remembered) {
     if remembered.len() < remembered.capacity() {
@@ -1135,13 +1146,7 @@ pub fn resolve_body_collisions(
             // transections and tears may make.)
             for (k, answered) in scratch.answered.iter_mut().enumerate() {
                 if scratch.near.get(k) == Some(&true) || SelfPairs::on(bodies, k) {
-                    answered.clear();
-                    let n = bodies[k].node_count();
-                    if n <= answered.capacity() {
-                        answered.resize(n, 0);
-                    } else {
-                        skipping = false;
-                    }
+                    skipping &= clear_marks(answered, bodies[k].node_count());
                 }
             }
         }
@@ -1323,12 +1328,7 @@ pub fn resolve_body_collisions(
                     // A body near another only now: none of its nodes was answered yet.
                     let n = bodies.get(k).map_or(0, Body::node_count);
                     if scratch.near.get(k) == Some(&true) && answered.len() != n {
-                        answered.clear();
-                        if n <= answered.capacity() {
-                            answered.resize(n, 0);
-                        } else {
-                            skipping = false;
-                        }
+                        skipping &= clear_marks(answered, n);
                     }
                 }
                 scratch.cache.list(
