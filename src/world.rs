@@ -22,9 +22,10 @@ use crate::contact::tool::{
 use crate::dynamics::Integrator;
 use crate::dynamics::attachment::Attachments;
 use crate::dynamics::guard::{Guard, body_energy, maxima as guard_maxima, maxima_by_blocks};
+use crate::dynamics::helper::LazyHelper;
 use crate::dynamics::implicit::Implicit;
 use crate::dynamics::integrate::commit_positions;
-use crate::dynamics::kernel::{ForceKernel, NodePass};
+use crate::dynamics::kernel::{ForceKernel, NodePass, SPLIT_NODES};
 use crate::dynamics::multirate::Multirate;
 use crate::dynamics::plasticity;
 use crate::dynamics::stability::{StabilityMargin, symplectic_margin};
@@ -179,6 +180,9 @@ pub struct World {
     spares: Vec<Option<Spare>>,
     /// Ligaments: ties between bodies and to the world.
     attachments: Attachments,
+    /// The second thread that runs half of a large body's force passes (see
+    /// [`crate::dynamics::helper`]); the bits are the same with it and without.
+    helper: LazyHelper,
 }
 
 /// A body reserved for a piece of a transection: buffers sized like its origin's, its solver,
@@ -551,6 +555,7 @@ impl World {
             pieces_named: Vec::new(),
             spares: Vec::new(),
             attachments: Attachments::default(),
+            helper: LazyHelper::default(),
         };
         world.assemble();
         world
@@ -904,6 +909,19 @@ impl World {
         }
     }
 
+    /// Lets a second thread run half of the force passes of each body of
+    /// [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more (the default), or keeps every pass on
+    /// the step's thread; the result bits are the same either way.
+    pub fn set_helper_thread(&mut self, on: bool) {
+        self.helper.set_on(on);
+    }
+
+    /// Parts of force passes offered to the helper thread, and parts it ran (the others ran on
+    /// the step's thread), since it started.
+    pub fn helper_counts(&self) -> (u64, u64) {
+        self.helper.counts()
+    }
+
     /// Chooses the force stage's SIMD path (where the machine has one) or its scalar path for every
     /// body; the result bits are the same either way.
     pub fn set_simd(&mut self, simd: bool) {
@@ -1096,7 +1114,12 @@ impl World {
             }
             clock.enter(Stage::Forces);
             kernel.refresh_with(body, cutter.as_ref().map(|c| &c.changes));
-            kernel.edge_forces(body);
+            let helper = if body.node_count() >= SPLIT_NODES {
+                self.helper.get()
+            } else {
+                None
+            };
+            kernel.edge_forces_with(body, helper);
             if attached {
                 for (node, force) in self.attachments.forces_on(b) {
                     kernel.add_external(node, &force);
@@ -1122,7 +1145,7 @@ impl World {
             } else {
                 NodePass::Forces
             };
-            kernel.node_pass(body, &gravity, dt, pass);
+            kernel.node_pass_with(body, &gravity, dt, pass, helper);
             if hold {
                 broad.held.restore_velocities(&mut body.surface);
                 // Their velocities are not the node pass's: they join their blocks.

@@ -8,7 +8,9 @@ use common::Rng;
 use palpa::Vec3;
 use palpa::body::Body;
 use palpa::dynamics::guard::body_energy;
-use palpa::dynamics::kernel::{EdgeBatches, ForceKernel, LANES, NodePass, simd_available};
+use palpa::dynamics::kernel::{
+    EdgeBatches, ForceKernel, LANES, NodePass, SPLIT_NODES, simd_available,
+};
 use palpa::scene::load_scene;
 use palpa::world::World;
 
@@ -205,7 +207,8 @@ fn the_batches_follow_every_topology_change() {
 #[test]
 fn forces_and_energy_are_the_models() {
     let mut rng = Rng(7);
-    for subdivisions in [1, 3] {
+    // 10 242 nodes: a body whose passes are cut in two parts (`SPLIT_NODES`).
+    for subdivisions in [1, 3, 5] {
         let mut world = organ(subdivisions, "");
         let gravity = world.params.gravity;
         let body = &mut world.bodies[0];
@@ -311,6 +314,72 @@ fn whole_runs_match_bit_for_bit_on_both_paths() {
             "{name}: SIMD and scalar runs differ"
         );
     }
+}
+
+#[test]
+fn a_large_body_gives_the_same_bits_with_and_without_the_helper_thread_on_both_paths() {
+    // 10 242 nodes (above `SPLIT_NODES`): the force passes are cut in two parts, the second
+    // offered to the world's helper thread. Symplectic, with the nodes' mass of the default organ
+    // (no node would be sub-stepped): the kernel's forces are the ones integrated. Shaken, it lands on a table: every part of the pass
+    // works (springs, links, integration, the table's contacts read the node blocks).
+    let scene = common::scene(
+        r#"
+        [world]
+        integrator = "symplectic"
+        [[body]]
+        name = "organ"
+        mesh = { icosphere = { radius = 0.05, subdivisions = 5 } }
+        position = [0.0, 0.0, 0.052]
+        surface_mass = 3.19
+        air_viscosity = 0.5
+        [[obstacle]]
+        name = "table"
+        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+        "#,
+    );
+    assert!(World::from_scene(&scene).bodies[0].node_count() >= SPLIT_NODES);
+    let paths: &[bool] = if simd_available() {
+        &[true, false]
+    } else {
+        &[false]
+    };
+    let mut digests = Vec::new();
+    for &simd in paths {
+        for helper in [true, false] {
+            // Every node shaken alike in each run, so that every spring works from the start.
+            let start = |world: &mut World| {
+                world.set_simd(simd);
+                world.set_helper_thread(helper);
+                shake(&mut world.bodies[0], &mut Rng(5));
+            };
+            let mut world = World::from_scene(&scene);
+            start(&mut world);
+            let mut check = World::from_scene(&scene);
+            start(&mut check);
+            let digest = run_digest(world, 300);
+            // The same world again: the same bits whichever thread took each part this time.
+            assert_eq!(
+                digest,
+                run_digest(check, 300),
+                "simd {simd}, helper {helper}: runs differ"
+            );
+            println!("simd {simd}, helper {helper}: {digest:016x}");
+            digests.push(digest);
+        }
+    }
+    assert!(
+        digests.iter().all(|&d| d == digests[0]),
+        "the paths or the helper change the bits: {digests:x?}"
+    );
+    // The helper was offered the parts (whether it ran them depends on the machine's load).
+    let mut world = World::from_scene(&scene);
+    for _ in 0..10 {
+        world.step();
+    }
+    let (posted, taken) = world.helper_counts();
+    println!("helper: {taken} of {posted} parts");
+    assert_eq!(posted, 20, "two parts a tick offered to the helper");
+    assert!(taken <= posted);
 }
 
 #[test]

@@ -15,9 +15,20 @@
 use crate::Vec3;
 use crate::body::{Body, Edges, TopologyChanges};
 use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
+use crate::dynamics::helper::Helper;
 
 /// Edges per batch (one AVX register of `f64`).
 pub const LANES: usize = 4;
+
+/// Bodies of at least this many nodes have their edge pass and node pass cut in two parts with
+/// their own accumulators and sums, added in a fixed order: the second part can run on the world's
+/// helper thread ([`crate::dynamics::helper`]), and the bits do not depend on whether it did.
+pub const SPLIT_NODES: usize = 4096;
+
+/// The node where a split body's node pass cuts (a multiple of the node blocks' size).
+fn node_cut(n: usize) -> usize {
+    n / 2 / BLOCK * BLOCK
+}
 
 /// The edges in batches of [`LANES`] with distinct endpoints, each batch's data side by side. A lane
 /// with no edge has node 0 at both ends (no length: no force, no energy), so every batch is full.
@@ -475,6 +486,10 @@ pub struct ForceKernel {
     /// Edge forces per node, x, y, z and a zero (N, world frame), then padding: one 32-byte
     /// vector a node, so that a lane adds its force to an end with one vector operation.
     force: Vec<[f64; 4]>,
+    /// The second part's accumulators, for a body of [`SPLIT_NODES`] nodes or more.
+    force_b: Vec<[f64; 4]>,
+    /// True when the node pass cleared `force_b` and no edge pass wrote it since.
+    force_b_clear: bool,
     /// Every accumulator of `force` is zero: the node pass clears each one after reading it (the
     /// line is in cache then), so that the next edge pass needs no clearing pass of its own.
     force_clear: bool,
@@ -508,7 +523,9 @@ impl ForceKernel {
         Self {
             batches: EdgeBatches::with_capacity(nodes, edges),
             force: Vec::with_capacity(nodes),
+            force_b: Vec::with_capacity(if nodes >= SPLIT_NODES { nodes } else { 0 }),
             force_clear: false,
+            force_b_clear: false,
             blocks: NodeBlocks::with_capacity(nodes),
             built_for: None,
             simd: true,
@@ -572,6 +589,12 @@ impl ForceKernel {
 
     /// The edge pass: spring forces into the accumulators (cleared first) and the springs' energy.
     pub fn edge_forces(&mut self, body: &Body) {
+        self.edge_forces_with(body, None);
+    }
+
+    /// [`ForceKernel::edge_forces`], the second part of a split body's pass (see [`SPLIT_NODES`])
+    /// offered to `helper`. Same bits with or without it.
+    pub fn edge_forces_with(&mut self, body: &Body, helper: Option<&Helper>) {
         self.refresh(body);
         let n = body.node_count();
         if !self.force_clear || self.force.len() != n {
@@ -580,19 +603,36 @@ impl ForceKernel {
         }
         self.force_clear = false;
         self.blocks.drop_all();
+        let split = n >= SPLIT_NODES;
+        if split && (!self.force_b_clear || self.force_b.len() != n) {
+            self.force_b.clear();
+            self.force_b.resize(n, [0.0; 4]);
+        }
+        self.force_b_clear = false;
         let x = &body.surface.position_in_world[..];
         let v = &body.surface.velocity_in_world[..];
-        let mut energy = [0.0; LANES];
-        #[cfg(target_arch = "x86_64")]
-        if self.uses_simd() {
-            // SAFETY: the machine has AVX (checked by `simd_available`); every index the batches
-            // hold is a node of the body (`rebuild` skips edges with an end past the nodes; empty
-            // lanes hold node 0, and a body with a batch has nodes), below the arrays' lengths.
-            unsafe { avx::edge_pass(&self.batches, x, v, &mut self.force, &mut energy) };
+        let simd = self.uses_simd();
+        let batches = &self.batches;
+        let all = batches.ends_of.len();
+        if !split {
+            let mut energy = [0.0; LANES];
+            edge_part(batches, 0..all, x, v, &mut self.force, &mut energy, simd);
             self.edge_energy = lane_sum(&energy);
             return;
         }
-        scalar_edge_pass(&self.batches, x, v, &mut self.force, &mut energy);
+        let cut = all / 2;
+        let (mut energy_a, mut energy_b) = ([0.0; LANES], [0.0; LANES]);
+        let (force_a, force_b) = (&mut self.force, &mut self.force_b);
+        let mut part_a = || edge_part(batches, 0..cut, x, v, force_a, &mut energy_a, simd);
+        let mut part_b = || edge_part(batches, cut..all, x, v, force_b, &mut energy_b, simd);
+        match helper {
+            Some(helper) => helper.join(part_a, part_b),
+            None => {
+                part_a();
+                part_b();
+            }
+        }
+        let energy: [f64; LANES] = std::array::from_fn(|l| energy_a[l] + energy_b[l]);
         self.edge_energy = lane_sum(&energy);
     }
 
@@ -614,6 +654,19 @@ impl ForceKernel {
     /// Nodes go four at a time, each sum (reaction, torque, energies) kept per lane and the lanes
     /// added in a fixed order at the end, so that the SIMD and scalar paths give the same bits.
     pub fn node_pass(&mut self, body: &mut Body, gravity: &Vec3, dt: f64, pass: NodePass) {
+        self.node_pass_with(body, gravity, dt, pass, None);
+    }
+
+    /// [`ForceKernel::node_pass`], the second part of a split body's pass (see [`SPLIT_NODES`])
+    /// offered to `helper`. Same bits with or without it.
+    pub fn node_pass_with(
+        &mut self,
+        body: &mut Body,
+        gravity: &Vec3,
+        dt: f64,
+        pass: NodePass,
+        helper: Option<&Helper>,
+    ) {
         let Body { surface, rigid, .. } = body;
         rigid.reset_forces(gravity);
         let rotation = rigid.world_from_body.to_rotation_matrix();
@@ -638,9 +691,12 @@ impl ForceKernel {
         // Every accumulator the pass reads, it clears (below: `force_clear`).
         self.force_clear = self.force.len() == n;
         // The blocks, when every node is integrated here with SIMD.
-        let blocks = simd && pass == NodePass::IntegrateAll;
+        let blocks = pass == NodePass::IntegrateAll;
+        let split = n >= SPLIT_NODES && self.force_b.len() == n;
+        self.force_b_clear = split;
         let mut nodes = Nodes {
             edge_force: &mut self.force[..n],
+            edge_force_b: split.then(|| &mut self.force_b[..n]),
             mass: &s.mass[..n],
             inverse_mass: &s.inverse_mass[..n],
             air: &s.air_damping[..n],
@@ -654,17 +710,35 @@ impl ForceKernel {
             homologue: &mut s.homologue_in_world[..n],
             force: &mut s.force_in_world[..n],
         };
+        let blocks = (simd && blocks).then(|| self.blocks.start(n));
         let mut sums = Sums::default();
-        #[cfg(target_arch = "x86_64")]
-        if simd {
-            // SAFETY: the machine has AVX (checked by `simd_available`).
-            let blocks = blocks.then(|| self.blocks.start(n));
-            unsafe { avx::node_pass(&frame, &mut nodes, pass, &mut sums, blocks) };
+        if split {
+            // Two parts cut at a block boundary, each with its sums, added lane by lane.
+            let cut = node_cut(n);
+            let (mut nodes_a, mut nodes_b) = nodes.split_at(cut);
+            let (blocks_a, blocks_b) = match blocks {
+                Some(blocks) => {
+                    let (a, b) = blocks.split_at_mut(cut / BLOCK);
+                    (Some(a), Some(b))
+                }
+                None => (None, None),
+            };
+            let mut sums_b = Sums::default();
+            let frame = &frame;
+            let sums_a = &mut sums;
+            let part_a = || node_part(frame, &mut nodes_a, pass, sums_a, blocks_a, simd);
+            let part_b = || node_part(frame, &mut nodes_b, pass, &mut sums_b, blocks_b, simd);
+            match helper {
+                Some(helper) => helper.join(part_a, part_b),
+                None => {
+                    part_a();
+                    part_b();
+                }
+            }
+            sums.add(&sums_b);
         } else {
-            node_blocks(&frame, &mut nodes, pass, &mut sums);
+            node_part(&frame, &mut nodes, pass, &mut sums, blocks, simd);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        node_blocks(&frame, &mut nodes, pass, &mut sums);
         let reaction_force = Vec3::new(
             lane_sum(&sums.reaction[0]),
             lane_sum(&sums.reaction[1]),
@@ -699,6 +773,8 @@ struct Frame {
 struct Nodes<'a> {
     /// Read, then cleared for the next edge pass.
     edge_force: &'a mut [[f64; 4]],
+    /// A split body's second accumulators: read, added to the first, cleared.
+    edge_force_b: Option<&'a mut [[f64; 4]]>,
     mass: &'a [f64],
     inverse_mass: &'a [f64],
     air: &'a [f64],
@@ -713,6 +789,66 @@ struct Nodes<'a> {
     force: &'a mut [Vec3],
 }
 
+impl<'a> Nodes<'a> {
+    /// Nodes `..cut` and `cut..`.
+    fn split_at(self, cut: usize) -> (Nodes<'a>, Nodes<'a>) {
+        let (edge_force_a, edge_force_b) = self.edge_force.split_at_mut(cut);
+        let (second_a, second_b) = match self.edge_force_b {
+            Some(f) => {
+                let (a, b) = f.split_at_mut(cut);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        };
+        let (mass_a, mass_b) = self.mass.split_at(cut);
+        let (inverse_mass_a, inverse_mass_b) = self.inverse_mass.split_at(cut);
+        let (air_a, air_b) = self.air.split_at(cut);
+        let (stiffness_a, stiffness_b) = self.link_stiffness.split_at(cut);
+        let (damping_a, damping_b) = self.link_damping.split_at(cut);
+        let (homologue_in_body_a, homologue_in_body_b) = self.homologue_in_body.split_at(cut);
+        let (tool_contact_a, tool_contact_b) = self.tool_contact.split_at(cut);
+        let (position_a, position_b) = self.position.split_at(cut);
+        let (velocity_a, velocity_b) = self.velocity.split_at_mut(cut);
+        let (next_a, next_b) = self.next_position.split_at_mut(cut);
+        let (homologue_a, homologue_b) = self.homologue.split_at_mut(cut);
+        let (force_a, force_b) = self.force.split_at_mut(cut);
+        (
+            Nodes {
+                edge_force: edge_force_a,
+                edge_force_b: second_a,
+                mass: mass_a,
+                inverse_mass: inverse_mass_a,
+                air: air_a,
+                link_stiffness: stiffness_a,
+                link_damping: damping_a,
+                homologue_in_body: homologue_in_body_a,
+                tool_contact: tool_contact_a,
+                position: position_a,
+                velocity: velocity_a,
+                next_position: next_a,
+                homologue: homologue_a,
+                force: force_a,
+            },
+            Nodes {
+                edge_force: edge_force_b,
+                edge_force_b: second_b,
+                mass: mass_b,
+                inverse_mass: inverse_mass_b,
+                air: air_b,
+                link_stiffness: stiffness_b,
+                link_damping: damping_b,
+                homologue_in_body: homologue_in_body_b,
+                tool_contact: tool_contact_b,
+                position: position_b,
+                velocity: velocity_b,
+                next_position: next_b,
+                homologue: homologue_b,
+                force: force_b,
+            },
+        )
+    }
+}
+
 /// Per-lane sums of the node pass.
 #[derive(Default)]
 struct Sums {
@@ -721,6 +857,44 @@ struct Sums {
     kinetic: [f64; LANES],
     elastic: [f64; LANES],
     potential: [f64; LANES],
+}
+
+impl Sums {
+    /// Adds `other`'s sums, lane by lane.
+    fn add(&mut self, other: &Sums) {
+        let add = |a: &mut [f64; LANES], b: &[f64; LANES]| {
+            for (a, b) in a.iter_mut().zip(b) {
+                *a += b;
+            }
+        };
+        for d in 0..3 {
+            add(&mut self.reaction[d], &other.reaction[d]);
+            add(&mut self.torque[d], &other.torque[d]);
+        }
+        add(&mut self.kinetic, &other.kinetic);
+        add(&mut self.elastic, &other.elastic);
+        add(&mut self.potential, &other.potential);
+    }
+}
+
+/// The node pass over `nodes` into `sums`, on the SIMD path when `simd` (the caller checked the
+/// machine has it; the blocks are kept only there).
+fn node_part(
+    frame: &Frame,
+    nodes: &mut Nodes,
+    pass: NodePass,
+    sums: &mut Sums,
+    blocks: Option<&mut [NodeBlock]>,
+    simd: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        // SAFETY: the machine has AVX (`simd` is `ForceKernel::uses_simd`).
+        unsafe { avx::node_pass(frame, nodes, pass, sums, blocks) };
+        return;
+    }
+    let _ = (simd, blocks);
+    node_blocks(frame, nodes, pass, sums);
 }
 
 /// The node pass over every node, block after block of [`LANES`] nodes (the last block partial).
@@ -766,6 +940,12 @@ fn node_block<const W: usize>(
             fe[d][l] = nodes.edge_force[i][d];
         }
         nodes.edge_force[i] = [0.0; 4];
+        if let Some(second) = nodes.edge_force_b.as_deref_mut() {
+            for d in 0..3 {
+                fe[d][l] += second[i][d];
+            }
+            second[i] = [0.0; 4];
+        }
         m[l] = nodes.mass[i];
         im[l] = nodes.inverse_mass[i];
         air[l] = nodes.air[i];
@@ -862,17 +1042,47 @@ fn lane_sum(lanes: &[f64; LANES]) -> f64 {
     (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
 }
 
+/// The batches `range` of the edge pass into `f` and `energy`, on the SIMD path when `simd` (the
+/// caller checked the machine has it) and the scalar one otherwise.
+fn edge_part(
+    batches: &EdgeBatches,
+    range: std::ops::Range<usize>,
+    x: &[Vec3],
+    v: &[Vec3],
+    f: &mut [[f64; 4]],
+    energy: &mut [f64; LANES],
+    simd: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if simd {
+        // SAFETY: the machine has AVX (`simd` is `ForceKernel::uses_simd`); every index the batches
+        // hold is a node of the body (`rebuild` skips edges with an end past the nodes; empty lanes
+        // hold node 0, and a body with a batch has nodes), below the arrays' lengths.
+        unsafe { avx::edge_pass(batches, range, x, v, f, energy) };
+        return;
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = simd;
+    scalar_edge_pass(batches, range, x, v, f, energy);
+}
+
 /// One batch's spring forces, lane by lane: the operations of the SIMD path in the same order.
 /// `d = x_b − x_a`, `l = √(d·d)`, `i = l (1 / d·d)`, `m = k (l − L) + c ((v_b − v_a)·d) i`, `F = d (m i)` on
 /// a and −F on b; zero where `d·d` is not above the smallest normal number. Energy ½ k (l − L)².
 fn scalar_edge_pass(
     batches: &EdgeBatches,
+    range: std::ops::Range<usize>,
     x: &[Vec3],
     v: &[Vec3],
     f: &mut [[f64; 4]],
     energy: &mut [f64; LANES],
 ) {
-    for (i, (ends, rest)) in batches.ends_of.iter().zip(&batches.rest).enumerate() {
+    let start = range.start;
+    let ends_rest = batches.ends_of[range.clone()]
+        .iter()
+        .zip(&batches.rest[range]);
+    for (j, (ends, rest)) in ends_rest.enumerate() {
+        let i = start + j;
         let [k, c] = batches.stiffness_damping_of(i);
         for lane in 0..LANES {
             let (a, b) = (ends[0][lane] as usize, ends[1][lane] as usize);
@@ -1000,9 +1210,23 @@ pub(crate) mod avx {
                 let fe = {
                     let rows = nodes.edge_force.as_mut_ptr().add(i) as *mut f64;
                     let row = |l: usize| _mm256_loadu_pd(rows.add(4 * l));
-                    let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+                    let (mut r0, mut r1, mut r2, mut r3) = (row(0), row(1), row(2), row(3));
                     for l in 0..4 {
                         _mm256_storeu_pd(rows.add(4 * l), zero);
+                    }
+                    if let Some(second) = nodes.edge_force_b.as_deref_mut() {
+                        // A split body's second part, added per component (as the scalar path).
+                        let rows = second.as_mut_ptr().add(i) as *mut f64;
+                        let row = |l: usize| _mm256_loadu_pd(rows.add(4 * l));
+                        (r0, r1, r2, r3) = (
+                            _mm256_add_pd(r0, row(0)),
+                            _mm256_add_pd(r1, row(1)),
+                            _mm256_add_pd(r2, row(2)),
+                            _mm256_add_pd(r3, row(3)),
+                        );
+                        for l in 0..4 {
+                            _mm256_storeu_pd(rows.add(4 * l), zero);
+                        }
                     }
                     // [x0 y0 z0 0], [x1 ...] → [x0 x1 x2 x3], [y...], [z...].
                     let t0 = _mm256_unpacklo_pd(r0, r1);
@@ -1224,6 +1448,7 @@ pub(crate) mod avx {
     #[target_feature(enable = "avx")]
     pub unsafe fn edge_pass(
         batches: &EdgeBatches,
+        range: std::ops::Range<usize>,
         x: &[Vec3],
         v: &[Vec3],
         f: &mut [[f64; 4]],
@@ -1237,7 +1462,12 @@ pub(crate) mod avx {
         let half = _mm256_set1_pd(0.5);
         let zero = _mm256_setzero_pd();
         let mut energy_lanes = _mm256_setzero_pd();
-        for (i, (ends, rest)) in batches.ends_of.iter().zip(&batches.rest).enumerate() {
+        let start = range.start;
+        let ends_rest = batches.ends_of[range.clone()]
+            .iter()
+            .zip(&batches.rest[range]);
+        for (j, (ends, rest)) in ends_rest.enumerate() {
+            let i = start + j;
             let [ga, gb] = ends;
             // SAFETY (all loads and stores): indices within the slices, as the caller guarantees.
             let (xa, xb, va, vb) = unsafe {

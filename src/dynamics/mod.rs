@@ -4,6 +4,7 @@ pub mod assess;
 pub mod attachment;
 pub mod forces;
 pub mod guard;
+pub mod helper;
 pub mod implicit;
 pub mod integrate;
 pub mod kernel;
