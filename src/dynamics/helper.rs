@@ -249,6 +249,7 @@ impl Drop for Helper {
 
 /// The helper thread: takes posted parts, spins for [`SPIN`] after each one, sleeps otherwise.
 fn work(shared: &Shared) {
+    leave_the_ticks_core();
     let mut since = Instant::now();
     let mut idle_spins = 0u32;
     loop {
@@ -290,6 +291,36 @@ fn work(shared: &Shared) {
     }
 }
 
+/// A helper started by a real-time tick thread (`palpa serve --rt`, with the `ipc` feature:
+/// SCHED_FIFO, pinned to one core) inherits both: it takes the normal scheduler back, and, when it was pinned to one core,
+/// every other core, so that it never holds the tick thread's core while it spins or sleeps.
+#[cfg(all(target_os = "linux", feature = "ipc"))]
+fn leave_the_ticks_core() {
+    // SAFETY: plain system calls on the calling thread, with sets sized as the calls ask.
+    unsafe {
+        let normal = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(0, libc::SCHED_OTHER, &normal);
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, size, &mut set) != 0 || libc::CPU_COUNT(&set) != 1 {
+            return;
+        }
+        let cores = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        let mut others: libc::cpu_set_t = std::mem::zeroed();
+        for core in 0..cores.min(libc::CPU_SETSIZE as usize) {
+            if !libc::CPU_ISSET(core, &set) {
+                libc::CPU_SET(core, &mut others);
+            }
+        }
+        if libc::CPU_COUNT(&others) > 0 {
+            libc::sched_setaffinity(0, size, &others);
+        }
+    }
+}
+
+#[cfg(not(all(target_os = "linux", feature = "ipc")))]
+fn leave_the_ticks_core() {}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -309,6 +340,50 @@ mod tests {
         }
         assert_eq!(helper.posted(), 2_000);
         assert!(helper.taken() <= 2_000);
+    }
+
+    #[cfg(all(target_os = "linux", feature = "ipc"))]
+    #[test]
+    fn a_helper_started_by_a_pinned_thread_runs_on_the_other_cores() {
+        // SAFETY (all blocks): plain system calls on the calling thread, with sets sized as they ask.
+        let cores = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) }.max(1) as usize;
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        let pinned_to = cores - 1;
+        let (taken, helper_cores) = thread::spawn(move || {
+            unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(pinned_to, &mut set);
+                assert_eq!(libc::sched_setaffinity(0, size, &set), 0);
+            }
+            let helper = Helper::spawn();
+            let mut seen = Vec::new();
+            helper.join(
+                // Gives the helper up to 5 s to take the part.
+                || {
+                    let start = Instant::now();
+                    while helper.taken() == 0 && start.elapsed() < Duration::from_secs(5) {
+                        thread::sleep(Duration::from_millis(1));
+                    }
+                },
+                || {
+                    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+                    unsafe { libc::sched_getaffinity(0, size, &mut set) };
+                    seen = (0..cores)
+                        .filter(|&c| unsafe { libc::CPU_ISSET(c, &set) })
+                        .collect();
+                },
+            );
+            (helper.taken(), seen)
+        })
+        .join()
+        .expect("the pinned thread");
+        assert_eq!(taken, 1, "the helper did not take the part within 5 s");
+        if cores == 1 {
+            assert_eq!(helper_cores, vec![0], "one core: the helper keeps it");
+        } else {
+            let others: Vec<usize> = (0..cores).filter(|&c| c != pinned_to).collect();
+            assert_eq!(helper_cores, others, "the helper kept the pinned core");
+        }
     }
 
     #[test]

@@ -625,8 +625,11 @@ impl ForceKernel {
         let (force_a, force_b) = (&mut self.force, &mut self.force_b);
         let mut part_a = || edge_part(batches, 0..cut, x, v, force_a, &mut energy_a, simd);
         let mut part_b = || edge_part(batches, cut..all, x, v, force_b, &mut energy_b, simd);
+        // The helper is offered the first part: the later batches cost more (measured: about 15 %
+        // on a 10 242-node sphere, the colouring's last batches gather the edges that fitted
+        // nowhere earlier), and the thread that ends waiting should be the helper.
         match helper {
-            Some(helper) => helper.join(part_a, part_b),
+            Some(helper) => helper.join(part_b, part_a),
             None => {
                 part_a();
                 part_b();
@@ -729,7 +732,7 @@ impl ForceKernel {
             let part_a = || node_part(frame, &mut nodes_a, pass, sums_a, blocks_a, simd);
             let part_b = || node_part(frame, &mut nodes_b, pass, &mut sums_b, blocks_b, simd);
             match helper {
-                Some(helper) => helper.join(part_a, part_b),
+                Some(helper) => helper.join(part_b, part_a),
                 None => {
                     part_a();
                     part_b();
