@@ -116,6 +116,52 @@ fn the_laparoscopy_scene_allocates_nothing_on_the_tick() {
 }
 
 #[test]
+fn a_large_body_sharing_its_passes_with_the_helper_thread_allocates_nothing_on_the_tick() {
+    // 10 242 nodes (above `SPLIT_NODES`): the step's thread hands half of each force pass to the
+    // world's helper thread (started, with its stack, at the first step), pressed by a probe.
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = common::scene(
+        r#"
+        [world]
+        integrator = "symplectic"
+        [[body]]
+        name = "organ"
+        mesh = { icosphere = { radius = 0.05, subdivisions = 5 } }
+        position = [0.0, 0.0, 0.05]
+        surface_mass = 3.19
+        fixed = true
+        [[obstacle]]
+        name = "table"
+        plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+        [[tool]]
+        name = "probe"
+        shape = { sphere = { radius = 0.008 } }
+        input = "script"
+        script = [ { t = 0.0, position = [0.0, 0.0, 0.11] }, { t = 0.3, position = [0.0, 0.0, 0.095] } ]
+        "#,
+    );
+    let mut world = World::from_scene(&scene);
+    assert!(world.bodies[0].node_count() >= palpa::dynamics::kernel::SPLIT_NODES);
+    for _ in 0..100 {
+        world.step();
+    }
+    let posted_before = world.helper_counts().0;
+    ALLOCATIONS.store(0, Ordering::SeqCst);
+    set_counting(true);
+    let mut contacts = 0;
+    for _ in 100..400 {
+        world.step();
+        contacts = contacts.max(world.tools[0].feedback.contacts);
+    }
+    set_counting(false);
+    let count = ALLOCATIONS.load(Ordering::SeqCst);
+    let posted = world.helper_counts().0 - posted_before;
+    assert_eq!(posted, 600, "two halves a step offered to the helper");
+    assert!(contacts > 0, "the probe touched nothing");
+    assert_eq!(count, 0, "{count} allocations in 300 steps");
+}
+
+#[test]
 fn subdivision_and_coarsening_allocate_nothing_on_the_tick() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     // probe_refine.toml: the probe touches at about 1.5 s, refines while it presses and strokes,

@@ -112,6 +112,10 @@ struct ScalingArgs {
     /// 162 to 2 562 nodes and fewer steps: a smoke test for CI.
     #[arg(long)]
     quick: bool,
+    /// Every force pass on the step's thread (by default a body of 4 096 nodes or more offers half
+    /// of its force passes to the world's helper thread).
+    #[arg(long)]
+    one_thread: bool,
 }
 
 #[derive(Args)]
@@ -623,6 +627,7 @@ fn scaling(args: ScalingArgs) -> Result<()> {
     for &level in &levels {
         for (k, probe) in [false, true].into_iter().enumerate() {
             let mut world = scaling_world(level, probe);
+            world.set_helper_thread(!args.one_thread);
             let nodes = world.bodies[0].node_count();
             for _ in 0..400 {
                 world.step();
@@ -667,10 +672,16 @@ fn scaling(args: ScalingArgs) -> Result<()> {
     let slope_free = loglog_slope(&series[0]);
     let slope_probe = loglog_slope(&series[1]);
     let result = json!({
-        "command": format!("palpa-bench scaling{} --out {}", if args.quick { " --quick" } else { "" }, args.out.display()),
+        "command": format!(
+            "palpa-bench scaling{}{} --out {}",
+            if args.quick { " --quick" } else { "" },
+            if args.one_thread { " --one-thread" } else { "" },
+            args.out.display()
+        ),
         "date": today(),
         "machine": machine(),
         "integrator": "multirate",
+        "helper_thread": !args.one_thread,
         "rows": rows,
         "slope_without_probe": slope_free,
         "slope_with_probe": slope_probe,
@@ -699,13 +710,18 @@ fn scaling(args: ScalingArgs) -> Result<()> {
     )
     .map_err(|e| anyhow::anyhow!(e))?;
     let mut md = format!(
-        "# palpa-bench scaling\n\n`{}` — {} — {}\n\nOne step (multi-rate integrator, one thread) of an \
+        "# palpa-bench scaling\n\n`{}` — {} — {}\n\nOne step (multi-rate integrator; {}) of an \
          icosphere (rigid component held) resting on a table, without and with an 8 mm probe pressed 5 mm into it. Fitted \
          log-log slope: {slope_free:.2} without the probe, {slope_probe:.2} with it.\n\n\
          | nodes | probe | steps | median (µs) | p99 (µs) | p99.9 (µs) | max (µs) |",
         result["command"].as_str().unwrap_or(""),
         result["date"].as_str().unwrap_or(""),
-        result["machine"].as_str().unwrap_or("")
+        result["machine"].as_str().unwrap_or(""),
+        if args.one_thread {
+            "every force pass on the step's thread"
+        } else {
+            "from 4 096 nodes, half of the force passes offered to the helper thread"
+        }
     );
     for s in Stage::ALL {
         md += &format!(" {} |", s.name());
