@@ -3,11 +3,12 @@
 //! A body of [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more has its edge pass and its node
 //! pass cut in two parts, each with its own accumulators and per-lane sums, added in a fixed order
 //! when both are done: the result bits depend on the cut, never on which thread ran a part. The
-//! tick's thread posts the second part to the helper, runs the first itself, and then takes the
-//! second back if the helper has not started it yet (it sleeps, or the machine gave its core to
-//! another process): a part waits for the helper only once the helper is running it, so a tick is
-//! never slower than on one thread by more than the cost of posting. No allocation, lock or
-//! system call but the wake-up of a sleeping helper (`unpark`) on the tick.
+//! tick's thread posts one part to the helper, runs the other itself, and then takes the posted
+//! part back if the helper has not started it yet (it sleeps, or the machine gave its core to
+//! another process): a tick waits for the helper only while the helper runs its part — for as long
+//! as that takes, also when the helper's core is taken from it midway (on a busy machine of two
+//! cores, the tail of the tick's times). No allocation, lock or system call on the tick but the
+//! wake-up of a sleeping helper (`unpark`).
 //!
 //! The helper keeps looking for work for [`SPIN`] after its last part, then sleeps until the next
 //! post; the tick's thread waits on an atomic (spinning, then yielding), never on a lock.

@@ -21,8 +21,8 @@ use crate::dynamics::helper::Helper;
 pub const LANES: usize = 4;
 
 /// Bodies of at least this many nodes have their edge pass and node pass cut in two parts with
-/// their own accumulators and sums, added in a fixed order: the second part can run on the world's
-/// helper thread ([`crate::dynamics::helper`]), and the bits do not depend on whether it did.
+/// their own accumulators and sums, added in a fixed order: one part can run on the world's helper
+/// thread ([`crate::dynamics::helper`]), and the bits do not depend on whether it did.
 pub const SPLIT_NODES: usize = 4096;
 
 /// The node where a split body's node pass cuts (a multiple of the node blocks' size).
@@ -592,7 +592,7 @@ impl ForceKernel {
         self.edge_forces_with(body, None);
     }
 
-    /// [`ForceKernel::edge_forces`], the second part of a split body's pass (see [`SPLIT_NODES`])
+    /// [`ForceKernel::edge_forces`], the first part of a split body's pass (see [`SPLIT_NODES`])
     /// offered to `helper`. Same bits with or without it.
     pub fn edge_forces_with(&mut self, body: &Body, helper: Option<&Helper>) {
         self.refresh(body);
@@ -625,9 +625,10 @@ impl ForceKernel {
         let (force_a, force_b) = (&mut self.force, &mut self.force_b);
         let mut part_a = || edge_part(batches, 0..cut, x, v, force_a, &mut energy_a, simd);
         let mut part_b = || edge_part(batches, cut..all, x, v, force_b, &mut energy_b, simd);
-        // The helper is offered the first part: the later batches cost more (measured: about 15 %
-        // on a 10 242-node sphere, the colouring's last batches gather the edges that fitted
-        // nowhere earlier), and the thread that ends waiting should be the helper.
+        // The helper is offered the first part: the second half of the passes costs more on either
+        // thread (measured: about 15 % on a 10 242-node sphere, the edge and node passes together;
+        // not from the batches' spread of nodes, which is larger in the first half), and the thread
+        // that ends waiting should be the helper.
         match helper {
             Some(helper) => helper.join(part_b, part_a),
             None => {
@@ -660,7 +661,7 @@ impl ForceKernel {
         self.node_pass_with(body, gravity, dt, pass, None);
     }
 
-    /// [`ForceKernel::node_pass`], the second part of a split body's pass (see [`SPLIT_NODES`])
+    /// [`ForceKernel::node_pass`], the first part of a split body's pass (see [`SPLIT_NODES`])
     /// offered to `helper`. Same bits with or without it.
     pub fn node_pass_with(
         &mut self,
