@@ -913,7 +913,10 @@ impl World {
     /// [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more (the default), or keeps every pass on
     /// the step's thread; the result bits are the same either way.
     pub fn set_helper_thread(&mut self, on: bool) {
-        self.helper.set_on(on);
+        self.params.helper_thread = on;
+        if !on {
+            self.helper.stop();
+        }
     }
 
     /// Parts of force passes offered to the helper thread, and parts it ran (the others ran on
@@ -1114,8 +1117,8 @@ impl World {
             }
             clock.enter(Stage::Forces);
             kernel.refresh_with(body, cutter.as_ref().map(|c| &c.changes));
-            let helper = if body.node_count() >= SPLIT_NODES {
-                self.helper.get()
+            let helper = if self.params.helper_thread && body.node_count() >= SPLIT_NODES {
+                Some(self.helper.get())
             } else {
                 None
             };

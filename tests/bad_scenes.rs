@@ -50,6 +50,11 @@ fn wrong_type_is_an_error_with_what_was_expected() {
         e.starts_with("bad.toml:4:16: invalid type: string \"heavy\", expected f64"),
         "{e}"
     );
+    let e = error_of("[world]\nhelper_thread = 2\n");
+    assert!(
+        e.starts_with("bad.toml:2:17: invalid type: integer `2`, expected a boolean"),
+        "{e}"
+    );
     let e = error_of(&format!("{BODY}position = [0.0, 1.0]\n"));
     assert!(e.starts_with("bad.toml:4:12: "), "{e}");
     assert!(

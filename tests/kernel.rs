@@ -268,6 +268,11 @@ fn simd_and_scalar_passes_give_the_same_bits() {
 
 /// FNV-1a over every node's position and velocity after every tick.
 fn run_digest(mut world: World, ticks: u64) -> u64 {
+    steps_digest(&mut world, ticks)
+}
+
+/// [`run_digest`] on a world kept by the caller.
+fn steps_digest(world: &mut World, ticks: u64) -> u64 {
     let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
     for _ in 0..ticks {
         world.step();
@@ -322,8 +327,7 @@ fn a_large_body_gives_the_same_bits_with_and_without_the_helper_thread_on_both_p
     // offered to the world's helper thread. Symplectic, with the nodes' mass of the default organ
     // (no node would be sub-stepped): the kernel's forces are the ones integrated. Shaken, it lands on a table: every part of the pass
     // works (springs, links, integration, the table's contacts read the node blocks).
-    let scene = common::scene(
-        r#"
+    let scene_text = r#"
         [world]
         integrator = "symplectic"
         [[body]]
@@ -335,8 +339,8 @@ fn a_large_body_gives_the_same_bits_with_and_without_the_helper_thread_on_both_p
         [[obstacle]]
         name = "table"
         plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-        "#,
-    );
+        "#;
+    let scene = common::scene(scene_text);
     assert!(World::from_scene(&scene).bodies[0].node_count() >= SPLIT_NODES);
     let paths: &[bool] = if simd_available() {
         &[true, false]
@@ -380,6 +384,47 @@ fn a_large_body_gives_the_same_bits_with_and_without_the_helper_thread_on_both_p
     println!("helper: {taken} of {posted} parts");
     assert_eq!(posted, 20, "two parts a tick offered to the helper");
     assert!(taken <= posted);
+    // The scene key turns it off.
+    let text = scene_text.replace("[world]", "[world]\nhelper_thread = false");
+    let mut world = World::from_scene(&common::scene(&text));
+    for _ in 0..10 {
+        world.step();
+    }
+    assert_eq!(world.helper_counts(), (0, 0), "helper_thread = false");
+}
+
+#[test]
+fn a_large_body_cut_and_subdivided_gives_the_same_bits_with_and_without_the_helper_thread() {
+    // The incision scene with its organ at 10 242 nodes: the blade cuts it and subdivision refines
+    // it under the probe while its passes are cut in two (the batches are patched and the node
+    // count changes between ticks).
+    let path = common::repo_root().join("scenes/incision.toml");
+    let text = std::fs::read_to_string(&path)
+        .expect("scenes/incision.toml")
+        .replace("subdivisions = 3 }", "subdivisions = 5 }")
+        .replace("surface_mass = 0.3", "surface_mass = 4.79");
+    assert!(
+        text.contains("subdivisions = 5 }"),
+        "the incision scene's mesh changed"
+    );
+    let scene = common::scene(&text);
+    let mut digests = Vec::new();
+    for helper in [true, false] {
+        let mut world = World::from_scene(&scene);
+        world.set_helper_thread(helper);
+        let nodes = world.bodies[0].node_count();
+        assert!(nodes >= SPLIT_NODES);
+        let digest = steps_digest(&mut world, 900);
+        let grown = world.bodies[0].node_count();
+        println!(
+            "helper {helper}: {nodes} → {grown} nodes, {:?} parts, {digest:016x}",
+            world.helper_counts()
+        );
+        assert!(grown > nodes, "no cut or subdivision in 0.9 s");
+        assert_eq!(world.helper_counts().0 > 0, helper);
+        digests.push(digest);
+    }
+    assert_eq!(digests[0], digests[1], "the helper changes the bits");
 }
 
 #[test]

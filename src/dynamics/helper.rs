@@ -147,38 +147,27 @@ impl Helper {
 }
 
 /// A world's helper, started at the first pass that offers it a part (warm-up: a thread and its
-/// stack are allocated then) unless turned off; a clone starts its own.
+/// stack are allocated then); a clone starts its own.
 #[derive(Debug, Default)]
 pub struct LazyHelper {
     helper: Option<Helper>,
-    off: bool,
 }
 
 impl Clone for LazyHelper {
     fn clone(&self) -> Self {
-        Self {
-            helper: None,
-            off: self.off,
-        }
+        Self { helper: None }
     }
 }
 
 impl LazyHelper {
-    /// The helper (started now if it was not), or `None` when turned off.
-    pub fn get(&mut self) -> Option<&Helper> {
-        if self.off {
-            return None;
-        }
-        Some(self.helper.get_or_insert_with(Helper::spawn))
+    /// The helper, started now if it was not.
+    pub fn get(&mut self) -> &Helper {
+        self.helper.get_or_insert_with(Helper::spawn)
     }
 
-    /// Turns the helper on (the default) or off (every part on the tick's thread; the thread, if
-    /// started, ends).
-    pub fn set_on(&mut self, on: bool) {
-        self.off = !on;
-        if !on {
-            self.helper = None;
-        }
+    /// Ends the helper's thread, if started (the next [`LazyHelper::get`] starts another).
+    pub fn stop(&mut self) {
+        self.helper = None;
     }
 
     /// Parts posted to the helper and parts it ran, since it started (zeros if it did not).

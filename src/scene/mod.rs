@@ -64,6 +64,10 @@ pub struct WorldParams {
     pub air_viscosity: f64,
     /// Default integrator of the bodies.
     pub integrator: Integrator,
+    /// Let a second thread run half of the force passes of each body of
+    /// [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more (the result bits are the same either
+    /// way; see [`crate::dynamics::helper`]).
+    pub helper_thread: bool,
 }
 
 impl Default for WorldParams {
@@ -73,6 +77,7 @@ impl Default for WorldParams {
             dt: 0.001,
             air_viscosity: 0.0,
             integrator: Integrator::default(),
+            helper_thread: true,
         }
     }
 }
@@ -191,6 +196,10 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
                 Rule::NonNegative,
             )?,
             integrator: ctx.integrator(w.integrator.as_ref(), world_defaults.integrator)?,
+            helper_thread: w
+                .helper_thread
+                .as_ref()
+                .map_or(world_defaults.helper_thread, |v| *v.get_ref()),
         },
     };
     if world.dt > 0.1 {

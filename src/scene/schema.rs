@@ -37,6 +37,7 @@ pub(super) struct WorldSection {
     pub dt: Option<Spanned<f64>>,
     pub air_viscosity: Option<Spanned<f64>>,
     pub integrator: Option<Spanned<String>>,
+    pub helper_thread: Option<Spanned<bool>>,
 }
 
 #[derive(Deserialize)]
