@@ -178,6 +178,25 @@ impl LazyHelper {
     }
 }
 
+impl Helper {
+    /// Runs `work(0) .. work(units − 1)`, each once, on this thread and the helper: each takes
+    /// the next unit left until none is (a helper that has not started when this thread runs out
+    /// takes none).
+    pub fn for_each(&self, units: usize, work: &(dyn Fn(usize) + Sync)) {
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let take = || {
+            loop {
+                let unit = next.fetch_add(1, Ordering::Relaxed);
+                if unit >= units {
+                    return;
+                }
+                work(unit);
+            }
+        };
+        self.join(take, take);
+    }
+}
+
 /// Takes the posted part back or waits until the helper is done with it — also when the first part
 /// panics, so that the helper never runs a closure whose frame is gone.
 struct Reclaim<'a> {
@@ -373,6 +392,22 @@ mod tests {
         } else {
             let others: Vec<usize> = (0..cores).filter(|&c| c != pinned_to).collect();
             assert_eq!(helper_cores, others, "the helper kept the pinned core");
+        }
+    }
+
+    #[test]
+    fn for_each_runs_every_unit_once() {
+        let helper = Helper::spawn();
+        for units in [0, 1, 2, 3, 7] {
+            let runs: Vec<std::sync::atomic::AtomicU32> =
+                (0..units).map(|_| AtomicU32::new(0)).collect();
+            helper.for_each(units, &|u| {
+                runs[u].fetch_add(1, Ordering::Relaxed);
+            });
+            assert!(
+                runs.iter().all(|r| r.load(Ordering::Relaxed) == 1),
+                "{units}"
+            );
         }
     }
 

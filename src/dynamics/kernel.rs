@@ -486,10 +486,11 @@ pub struct ForceKernel {
     /// Edge forces per node, x, y, z and a zero (N, world frame), then padding: one 32-byte
     /// vector a node, so that a lane adds its force to an end with one vector operation.
     force: Vec<[f64; 4]>,
-    /// The second part's accumulators, for a body of [`SPLIT_NODES`] nodes or more.
+    /// The accumulators of the batches across a split body's node cut (see [`SPLIT_NODES`]): zero
+    /// but between the edge pass's units and their addition to `force`.
     force_b: Vec<[f64; 4]>,
-    /// True when the node pass cleared `force_b` and no edge pass wrote it since.
-    force_b_clear: bool,
+    /// A split body's batches by the side of the node cut their ends lie on.
+    split: SplitBatches,
     /// Every accumulator of `force` is zero: the node pass clears each one after reading it (the
     /// line is in cache then), so that the next edge pass needs no clearing pass of its own.
     force_clear: bool,
@@ -524,8 +525,12 @@ impl ForceKernel {
             batches: EdgeBatches::with_capacity(nodes, edges),
             force: Vec::with_capacity(nodes),
             force_b: Vec::with_capacity(if nodes >= SPLIT_NODES { nodes } else { 0 }),
+            split: SplitBatches::with_capacity(if nodes >= SPLIT_NODES {
+                (nodes, edges)
+            } else {
+                (0, 0)
+            }),
             force_clear: false,
-            force_b_clear: false,
             blocks: NodeBlocks::with_capacity(nodes),
             built_for: None,
             simd: true,
@@ -604,39 +609,54 @@ impl ForceKernel {
         self.force_clear = false;
         self.blocks.drop_all();
         let split = n >= SPLIT_NODES;
-        if split && (!self.force_b_clear || self.force_b.len() != n) {
-            self.force_b.clear();
-            self.force_b.resize(n, [0.0; 4]);
-        }
-        self.force_b_clear = false;
         let x = &body.surface.position_in_world[..];
         let v = &body.surface.velocity_in_world[..];
         let simd = self.uses_simd();
-        let batches = &self.batches;
-        let all = batches.ends_of.len();
+        let all = self.batches.ends_of.len();
         if !split {
             let mut energy = [0.0; LANES];
-            edge_part(batches, 0..all, x, v, &mut self.force, &mut energy, simd);
+            let f = self.force.as_mut_ptr();
+            // SAFETY: `f` holds the body's nodes (resized above), every end of the batches.
+            unsafe { edge_part(&self.batches, 0..all, x, v, f, &mut energy, simd) };
             self.edge_energy = lane_sum(&energy);
             return;
         }
-        let cut = all / 2;
-        let (mut energy_a, mut energy_b) = ([0.0; LANES], [0.0; LANES]);
-        let (force_a, force_b) = (&mut self.force, &mut self.force_b);
-        let mut part_a = || edge_part(batches, 0..cut, x, v, force_a, &mut energy_a, simd);
-        let mut part_b = || edge_part(batches, cut..all, x, v, force_b, &mut energy_b, simd);
-        // The helper is offered the first part: the second half of the passes costs more on either
-        // thread (measured: about 15 % on a 10 242-node sphere, the edge and node passes together;
-        // not from the batches' spread of nodes, which is larger in the first half), and the thread
-        // that ends waiting should be the helper.
-        match helper {
-            Some(helper) => helper.join(part_b, part_a),
-            None => {
-                part_a();
-                part_b();
-            }
+        if self.force_b.len() != n {
+            self.force_b.clear();
+            self.force_b.resize(n, [0.0; 4]);
         }
-        let energy: [f64; LANES] = std::array::from_fn(|l| energy_a[l] + energy_b[l]);
+        let cut = node_cut(n);
+        let stamp = self.built_for.map(|(version, ..)| (version, n, all, cut));
+        if self.split.made_for != stamp || stamp.is_none() {
+            self.split.classify(&self.batches, n, cut);
+            self.split.made_for = stamp;
+        }
+        // Three units: the batches wholly below the node cut and wholly above it, into the
+        // accumulators (their nodes differ), and the batches across it, into the second ones.
+        let mut energies = [[0.0; LANES]; 3];
+        let force = Shared(self.force.as_mut_ptr());
+        let force_b = Shared(self.force_b.as_mut_ptr());
+        let energy = Shared(energies.as_mut_ptr());
+        let (batches, units) = (&self.batches, &self.split.units);
+        run_units(helper, 3, &|u| {
+            let target = if u == 2 { force_b.get() } else { force.get() };
+            let list = units[u].iter().map(|&i| i as usize);
+            // SAFETY: each unit runs once (`run_units`) and writes its own energy lanes; units 0 and
+            // 1 write only the accumulators of nodes below and from the cut (every end of their
+            // batches is), unit 2 only the second accumulators; both arrays hold every node.
+            unsafe { edge_part(batches, list, x, v, target, &mut *energy.get().add(u), simd) };
+        });
+        // The second accumulators into the first, at the nodes the crossing batches touch (the
+        // others are zero), in node order; they are left cleared.
+        for &i in &self.split.crossed {
+            let (f, g) = (&mut self.force[i as usize], &mut self.force_b[i as usize]);
+            for d in 0..3 {
+                f[d] += g[d];
+            }
+            *g = [0.0; 4];
+        }
+        let energy: [f64; LANES] =
+            std::array::from_fn(|l| (energies[0][l] + energies[1][l]) + energies[2][l]);
         self.edge_energy = lane_sum(&energy);
     }
 
@@ -696,11 +716,9 @@ impl ForceKernel {
         self.force_clear = self.force.len() == n;
         // The blocks, when every node is integrated here with SIMD.
         let blocks = pass == NodePass::IntegrateAll;
-        let split = n >= SPLIT_NODES && self.force_b.len() == n;
-        self.force_b_clear = split;
+        let split = n >= SPLIT_NODES;
         let mut nodes = Nodes {
             edge_force: &mut self.force[..n],
-            edge_force_b: split.then(|| &mut self.force_b[..n]),
             mass: &s.mass[..n],
             inverse_mass: &s.inverse_mass[..n],
             air: &s.air_damping[..n],
@@ -717,9 +735,10 @@ impl ForceKernel {
         let blocks = (simd && blocks).then(|| self.blocks.start(n));
         let mut sums = Sums::default();
         if split {
-            // Two parts cut at a block boundary, each with its sums, added lane by lane.
+            // Two halves cut at a block boundary, each with its sums, added lane by lane; the
+            // first taker (the step's thread) takes the second half.
             let cut = node_cut(n);
-            let (mut nodes_a, mut nodes_b) = nodes.split_at(cut);
+            let (nodes_a, nodes_b) = nodes.split_at(cut);
             let (blocks_a, blocks_b) = match blocks {
                 Some(blocks) => {
                     let (a, b) = blocks.split_at_mut(cut / BLOCK);
@@ -727,19 +746,19 @@ impl ForceKernel {
                 }
                 None => (None, None),
             };
-            let mut sums_b = Sums::default();
+            let halves = [
+                Once::new((nodes_b, blocks_b, Sums::default())),
+                Once::new((nodes_a, blocks_a, Sums::default())),
+            ];
             let frame = &frame;
-            let sums_a = &mut sums;
-            let part_a = || node_part(frame, &mut nodes_a, pass, sums_a, blocks_a, simd);
-            let part_b = || node_part(frame, &mut nodes_b, pass, &mut sums_b, blocks_b, simd);
-            match helper {
-                Some(helper) => helper.join(part_b, part_a),
-                None => {
-                    part_a();
-                    part_b();
-                }
-            }
-            sums.add(&sums_b);
+            run_units(helper, 2, &|u| {
+                // SAFETY: each unit is run once (`run_units`).
+                let (nodes, blocks, sums) = unsafe { halves[u].get() };
+                node_part(frame, nodes, pass, sums, blocks.take(), simd);
+            });
+            let [b, a] = halves.map(Once::into_inner);
+            sums = a.2;
+            sums.add(&b.2);
         } else {
             node_part(&frame, &mut nodes, pass, &mut sums, blocks, simd);
         }
@@ -777,8 +796,6 @@ struct Frame {
 struct Nodes<'a> {
     /// Read, then cleared for the next edge pass.
     edge_force: &'a mut [[f64; 4]],
-    /// A split body's second accumulators: read, added to the first, cleared.
-    edge_force_b: Option<&'a mut [[f64; 4]]>,
     mass: &'a [f64],
     inverse_mass: &'a [f64],
     air: &'a [f64],
@@ -797,13 +814,6 @@ impl<'a> Nodes<'a> {
     /// Nodes `..cut` and `cut..`.
     fn split_at(self, cut: usize) -> (Nodes<'a>, Nodes<'a>) {
         let (edge_force_a, edge_force_b) = self.edge_force.split_at_mut(cut);
-        let (second_a, second_b) = match self.edge_force_b {
-            Some(f) => {
-                let (a, b) = f.split_at_mut(cut);
-                (Some(a), Some(b))
-            }
-            None => (None, None),
-        };
         let (mass_a, mass_b) = self.mass.split_at(cut);
         let (inverse_mass_a, inverse_mass_b) = self.inverse_mass.split_at(cut);
         let (air_a, air_b) = self.air.split_at(cut);
@@ -819,7 +829,6 @@ impl<'a> Nodes<'a> {
         (
             Nodes {
                 edge_force: edge_force_a,
-                edge_force_b: second_a,
                 mass: mass_a,
                 inverse_mass: inverse_mass_a,
                 air: air_a,
@@ -835,7 +844,6 @@ impl<'a> Nodes<'a> {
             },
             Nodes {
                 edge_force: edge_force_b,
-                edge_force_b: second_b,
                 mass: mass_b,
                 inverse_mass: inverse_mass_b,
                 air: air_b,
@@ -944,12 +952,6 @@ fn node_block<const W: usize>(
             fe[d][l] = nodes.edge_force[i][d];
         }
         nodes.edge_force[i] = [0.0; 4];
-        if let Some(second) = nodes.edge_force_b.as_deref_mut() {
-            for d in 0..3 {
-                fe[d][l] += second[i][d];
-            }
-            second[i] = [0.0; 4];
-        }
         m[l] = nodes.mass[i];
         im[l] = nodes.inverse_mass[i];
         air[l] = nodes.air[i];
@@ -1046,14 +1048,19 @@ fn lane_sum(lanes: &[f64; LANES]) -> f64 {
     (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
 }
 
-/// The batches `range` of the edge pass into `f` and `energy`, on the SIMD path when `simd` (the
-/// caller checked the machine has it) and the scalar one otherwise.
-fn edge_part(
+/// The batches `list` of the edge pass into the accumulators at `f` and `energy`, on the SIMD path
+/// when `simd` (the caller checked the machine has it) and the scalar one otherwise.
+///
+/// # Safety
+/// `f` points to an accumulator for every end of the listed batches, which no other thread reads or
+/// writes meanwhile.
+#[allow(clippy::too_many_arguments)]
+unsafe fn edge_part(
     batches: &EdgeBatches,
-    range: std::ops::Range<usize>,
+    list: impl Iterator<Item = usize>,
     x: &[Vec3],
     v: &[Vec3],
-    f: &mut [[f64; 4]],
+    f: *mut [f64; 4],
     energy: &mut [f64; LANES],
     simd: bool,
 ) {
@@ -1061,32 +1068,144 @@ fn edge_part(
     if simd {
         // SAFETY: the machine has AVX (`simd` is `ForceKernel::uses_simd`); every index the batches
         // hold is a node of the body (`rebuild` skips edges with an end past the nodes; empty lanes
-        // hold node 0, and a body with a batch has nodes), below the arrays' lengths.
-        unsafe { avx::edge_pass(batches, range, x, v, f, energy) };
+        // hold node 0, and a body with a batch has nodes), below the arrays' lengths; `f` as the
+        // caller guarantees.
+        unsafe { avx::edge_pass(batches, list, x, v, f, energy) };
         return;
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
-    scalar_edge_pass(batches, range, x, v, f, energy);
+    // SAFETY: as the caller guarantees.
+    unsafe { scalar_edge_pass(batches, list, x, v, f, energy) };
+}
+
+/// Runs `work(0) .. work(units − 1)`, each once: on this thread and the helper, each taking the
+/// next unit left until none is, or here alone.
+fn run_units(helper: Option<&Helper>, units: usize, work: &(dyn Fn(usize) + Sync)) {
+    match helper {
+        Some(helper) => helper.for_each(units, work),
+        None => (0..units).for_each(work),
+    }
+}
+
+/// A pointer handed to the units of a pass, which write through it where the pass's comments say.
+#[derive(Clone, Copy)]
+struct Shared<T>(*mut T);
+
+impl<T> Shared<T> {
+    /// The pointer (a method, so that a closure captures the whole `Shared`).
+    fn get(self) -> *mut T {
+        self.0
+    }
+}
+
+// SAFETY: the units write through it to disjoint memory (see each use).
+unsafe impl<T> Send for Shared<T> {}
+// SAFETY: as above.
+unsafe impl<T> Sync for Shared<T> {}
+
+/// A value a unit of a pass takes alone: each unit index is run once.
+struct Once<T>(std::cell::UnsafeCell<T>);
+
+// SAFETY: `get` is called once per value, by the one thread that runs its unit.
+unsafe impl<T: Send> Sync for Once<T> {}
+
+impl<T> Once<T> {
+    fn new(value: T) -> Self {
+        Self(std::cell::UnsafeCell::new(value))
+    }
+
+    /// # Safety
+    /// Called by one thread only, while no other reference to the value lives.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn get(&self) -> &mut T {
+        // SAFETY: as the caller guarantees.
+        unsafe { &mut *self.0.get() }
+    }
+
+    fn into_inner(self) -> T {
+        self.0.into_inner()
+    }
+}
+
+/// A split body's batches (see [`SPLIT_NODES`]) as three units: those whose ends all lie below the
+/// node cut, those whose ends all lie at or above it, and those across it; and the nodes the last
+/// touch.
+#[derive(Clone, Debug, Default)]
+struct SplitBatches {
+    units: [Vec<u32>; 3],
+    /// Nodes some batch across the cut touches, in increasing order.
+    crossed: Vec<u32>,
+    /// Per node: touched by a batch across the cut (scratch).
+    mark: Vec<bool>,
+    /// (topology version, nodes, batches, node cut) the units were made for.
+    made_for: Option<(u64, usize, usize, usize)>,
+}
+
+impl SplitBatches {
+    /// Scratch for a body of up to `nodes` nodes and `edges` edges (a batch holds at least one
+    /// edge).
+    fn with_capacity((nodes, edges): (usize, usize)) -> Self {
+        Self {
+            units: std::array::from_fn(|_| Vec::with_capacity(edges)),
+            crossed: Vec::with_capacity(nodes),
+            mark: Vec::with_capacity(nodes),
+            made_for: None,
+        }
+    }
+
+    /// Sorts the batches into the units for a body of `n` nodes cut at `cut`.
+    fn classify(&mut self, batches: &EdgeBatches, n: usize, cut: usize) {
+        for unit in &mut self.units {
+            unit.clear();
+        }
+        self.crossed.clear();
+        self.mark.clear();
+        self.mark.resize(n, false);
+        for (i, ends) in batches.ends_of.iter().enumerate() {
+            // Empty lanes hold node 0: a batch with one counts as touching it.
+            let below = ends
+                .iter()
+                .flatten()
+                .filter(|&&e| (e as usize) < cut)
+                .count();
+            let unit = match below {
+                8 => 0,
+                0 => 1,
+                _ => 2,
+            };
+            self.units[unit].push(i as u32);
+            if unit == 2 {
+                for &e in ends.iter().flatten() {
+                    self.mark[e as usize] = true;
+                }
+            }
+        }
+        for (i, &marked) in self.mark.iter().enumerate() {
+            if marked {
+                self.crossed.push(i as u32);
+            }
+        }
+    }
 }
 
 /// One batch's spring forces, lane by lane: the operations of the SIMD path in the same order.
 /// `d = x_b − x_a`, `l = √(d·d)`, `i = l (1 / d·d)`, `m = k (l − L) + c ((v_b − v_a)·d) i`, `F = d (m i)` on
 /// a and −F on b; zero where `d·d` is not above the smallest normal number. Energy ½ k (l − L)².
-fn scalar_edge_pass(
+///
+/// # Safety
+/// `f` points to an accumulator for every end of the listed batches, which no other thread reads or
+/// writes meanwhile.
+unsafe fn scalar_edge_pass(
     batches: &EdgeBatches,
-    range: std::ops::Range<usize>,
+    list: impl Iterator<Item = usize>,
     x: &[Vec3],
     v: &[Vec3],
-    f: &mut [[f64; 4]],
+    f: *mut [f64; 4],
     energy: &mut [f64; LANES],
 ) {
-    let start = range.start;
-    let ends_rest = batches.ends_of[range.clone()]
-        .iter()
-        .zip(&batches.rest[range]);
-    for (j, (ends, rest)) in ends_rest.enumerate() {
-        let i = start + j;
+    for i in list {
+        let (ends, rest) = (&batches.ends_of[i], &batches.rest[i]);
         let [k, c] = batches.stiffness_damping_of(i);
         for lane in 0..LANES {
             let (a, b) = (ends[0][lane] as usize, ends[1][lane] as usize);
@@ -1106,12 +1225,14 @@ fn scalar_edge_pass(
             };
             let (px, py, pz) = (dx * scale, dy * scale, dz * scale);
             energy[lane] += 0.5 * e;
-            f[a][0] += px;
-            f[a][1] += py;
-            f[a][2] += pz;
-            f[b][0] -= px;
-            f[b][1] -= py;
-            f[b][2] -= pz;
+            // SAFETY: as the caller guarantees.
+            let (fa, fb) = unsafe { (&mut *f.add(a), &mut *f.add(b)) };
+            fa[0] += px;
+            fa[1] += py;
+            fa[2] += pz;
+            fb[0] -= px;
+            fb[1] -= py;
+            fb[2] -= pz;
         }
     }
 }
@@ -1214,23 +1335,9 @@ pub(crate) mod avx {
                 let fe = {
                     let rows = nodes.edge_force.as_mut_ptr().add(i) as *mut f64;
                     let row = |l: usize| _mm256_loadu_pd(rows.add(4 * l));
-                    let (mut r0, mut r1, mut r2, mut r3) = (row(0), row(1), row(2), row(3));
+                    let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
                     for l in 0..4 {
                         _mm256_storeu_pd(rows.add(4 * l), zero);
-                    }
-                    if let Some(second) = nodes.edge_force_b.as_deref_mut() {
-                        // A split body's second part, added per component (as the scalar path).
-                        let rows = second.as_mut_ptr().add(i) as *mut f64;
-                        let row = |l: usize| _mm256_loadu_pd(rows.add(4 * l));
-                        (r0, r1, r2, r3) = (
-                            _mm256_add_pd(r0, row(0)),
-                            _mm256_add_pd(r1, row(1)),
-                            _mm256_add_pd(r2, row(2)),
-                            _mm256_add_pd(r3, row(3)),
-                        );
-                        for l in 0..4 {
-                            _mm256_storeu_pd(rows.add(4 * l), zero);
-                        }
                     }
                     // [x0 y0 z0 0], [x1 ...] → [x0 x1 x2 x3], [y...], [z...].
                     let t0 = _mm256_unpacklo_pd(r0, r1);
@@ -1448,30 +1555,27 @@ pub(crate) mod avx {
     ///
     /// # Safety
     /// The machine must have AVX; every index of the batches must be below `x.len()`, `v.len()`
-    /// and `f.len()`.
+    /// and `f` must point to an accumulator for each, which no other thread reads or writes
+    /// meanwhile.
     #[target_feature(enable = "avx")]
     pub unsafe fn edge_pass(
         batches: &EdgeBatches,
-        range: std::ops::Range<usize>,
+        list: impl Iterator<Item = usize>,
         x: &[Vec3],
         v: &[Vec3],
-        f: &mut [[f64; 4]],
+        f: *mut [f64; 4],
         energy: &mut [f64; LANES],
     ) {
         let xp = x.as_ptr() as *const f64;
         let vp = v.as_ptr() as *const f64;
-        let fp = f.as_mut_ptr() as *mut f64;
+        let fp = f as *mut f64;
         let tiny = _mm256_set1_pd(f64::MIN_POSITIVE);
         let one = _mm256_set1_pd(1.0);
         let half = _mm256_set1_pd(0.5);
         let zero = _mm256_setzero_pd();
         let mut energy_lanes = _mm256_setzero_pd();
-        let start = range.start;
-        let ends_rest = batches.ends_of[range.clone()]
-            .iter()
-            .zip(&batches.rest[range]);
-        for (j, (ends, rest)) in ends_rest.enumerate() {
-            let i = start + j;
+        for i in list {
+            let (ends, rest) = (&batches.ends_of[i], &batches.rest[i]);
             let [ga, gb] = ends;
             // SAFETY (all loads and stores): indices within the slices, as the caller guarantees.
             let (xa, xb, va, vb) = unsafe {
@@ -1538,5 +1642,53 @@ pub(crate) mod avx {
             }
         }
         unsafe { _mm256_storeu_pd(energy.as_mut_ptr(), energy_lanes) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_split_bodys_units_write_disjoint_accumulators() {
+        // A scene's mesh, its nodes ordered along a Z curve as every scene's are.
+        let text = "[[body]]\nname = \"organ\"\n\
+                    mesh = { icosphere = { radius = 0.05, subdivisions = 5 } }\n";
+        let scene = crate::scene::parse_scene(text, "split.toml", std::path::Path::new("."))
+            .expect("a valid scene");
+        let world = crate::world::World::from_scene(&scene);
+        let body = &world.bodies[0];
+        let n = body.node_count();
+        assert!(n >= SPLIT_NODES);
+        let mut kernel = ForceKernel::new(body);
+        kernel.refresh(body);
+        let cut = node_cut(n);
+        assert_eq!(cut % BLOCK, 0);
+        let mut split = SplitBatches::default();
+        split.classify(&kernel.batches, n, cut);
+        let batches = &kernel.batches;
+        let ends = |i: u32| {
+            batches.ends_of[i as usize]
+                .iter()
+                .flatten()
+                .map(|&e| e as usize)
+        };
+        // Units 0 and 1 touch only their side of the cut; unit 2 crosses it and its nodes are
+        // listed; every batch is in one unit.
+        assert!(split.units[0].iter().all(|&i| ends(i).all(|e| e < cut)));
+        assert!(split.units[1].iter().all(|&i| ends(i).all(|e| e >= cut)));
+        for &i in &split.units[2] {
+            assert!(ends(i).any(|e| e < cut) && ends(i).any(|e| e >= cut));
+            assert!(ends(i).all(|e| split.crossed.binary_search(&(e as u32)).is_ok()));
+        }
+        let mut all: Vec<u32> = split.units.iter().flatten().copied().collect();
+        all.sort_unstable();
+        assert!(all.iter().copied().eq(0..batches.ends_of.len() as u32));
+        let crossing = split.units[2].len() as f64 / all.len() as f64;
+        println!(
+            "{n} nodes: {:.1} % of the batches cross the cut",
+            100.0 * crossing
+        );
+        assert!(crossing < 0.1, "{crossing}");
     }
 }
