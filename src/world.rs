@@ -919,8 +919,8 @@ impl World {
         }
     }
 
-    /// Parts of force passes offered to the helper thread, and parts it ran (the others ran on
-    /// the step's thread), since it started.
+    /// Force passes offered to the helper thread, and those it joined (it may find every unit
+    /// taken by then; the others ran on the step's thread alone), since it started.
     pub fn helper_counts(&self) -> (u64, u64) {
         self.helper.counts()
     }

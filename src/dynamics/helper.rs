@@ -1,11 +1,12 @@
 //! A second thread for the force passes of large bodies.
 //!
-//! A body of [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more has its edge pass and its node
-//! pass cut in two parts, each with its own accumulators and per-lane sums, added in a fixed order
-//! when both are done: the result bits depend on the cut, never on which thread ran a part. The
-//! tick's thread posts one part to the helper, runs the other itself, and then takes the posted
-//! part back if the helper has not started it yet (it sleeps, or the machine gave its core to
-//! another process): a tick waits for the helper only while the helper runs its part — for as long
+//! A body of [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more runs its edge pass and its node
+//! pass as units that write disjoint memory (their own accumulators or nodes, their own per-lane
+//! sums), combined in a fixed order when all are done: the result bits depend on the units, never
+//! on which thread ran one. The tick's thread posts the pass to the helper ([`Helper::for_each`]),
+//! and both take the next unit left until none is; a helper that has not started by then (it
+//! sleeps, or the machine gave its core to another process) takes none, its post taken back
+//! ([`Helper::join`]). A tick waits for the helper only while the helper runs a unit — for as long
 //! as that takes, also when the helper's core is taken from it midway (on a busy machine of two
 //! cores, the tail of the tick's times). No allocation, lock or system call on the tick but the
 //! wake-up of a sleeping helper (`unpark`).

@@ -20,9 +20,9 @@ use crate::dynamics::helper::Helper;
 /// Edges per batch (one AVX register of `f64`).
 pub const LANES: usize = 4;
 
-/// Bodies of at least this many nodes have their edge pass and node pass cut in two parts with
-/// their own accumulators and sums, added in a fixed order: one part can run on the world's helper
-/// thread ([`crate::dynamics::helper`]), and the bits do not depend on whether it did.
+/// Bodies of at least this many nodes run their edge pass and node pass as units that write
+/// disjoint memory, combined in a fixed order: the world's helper thread
+/// ([`crate::dynamics::helper`]) can take some, and the bits do not depend on which it took.
 pub const SPLIT_NODES: usize = 4096;
 
 /// The node where a split body's node pass cuts (a multiple of the node blocks' size).
@@ -597,8 +597,8 @@ impl ForceKernel {
         self.edge_forces_with(body, None);
     }
 
-    /// [`ForceKernel::edge_forces`], the first part of a split body's pass (see [`SPLIT_NODES`])
-    /// offered to `helper`. Same bits with or without it.
+    /// [`ForceKernel::edge_forces`], a split body's units (see [`SPLIT_NODES`]) shared with
+    /// `helper`. Same bits with or without it.
     pub fn edge_forces_with(&mut self, body: &Body, helper: Option<&Helper>) {
         self.refresh(body);
         let n = body.node_count();
@@ -681,8 +681,8 @@ impl ForceKernel {
         self.node_pass_with(body, gravity, dt, pass, None);
     }
 
-    /// [`ForceKernel::node_pass`], the first part of a split body's pass (see [`SPLIT_NODES`])
-    /// offered to `helper`. Same bits with or without it.
+    /// [`ForceKernel::node_pass`], a split body's units (see [`SPLIT_NODES`]) shared with
+    /// `helper`. Same bits with or without it.
     pub fn node_pass_with(
         &mut self,
         body: &mut Body,

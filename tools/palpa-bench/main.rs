@@ -1649,7 +1649,7 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
          | | µs per step | ns per node |\n| --- | --- | --- |\n\
          | palpa ({}) | {:.1} | {:.1} |\n| palpa, the step's thread alone | {:.1} | {:.1} |\n| plain reference | {:.1} | {:.1} |\n\n\
          Ratio palpa / reference: **{ratio:.3}** (goal ≤ 0.25); on the step's thread alone {one_thread_ratio:.3}. \
-         The helper thread ran {:.0} % of the force passes' parts offered to it. Largest node gap after 200 steps: {gap:.2e} m. \
+         The helper thread joined {:.0} % of the force passes offered to it. Largest node gap after 200 steps: {gap:.2e} m. \
          Colouring the edge batches again: {rebuild_us:.1} µs; following a cut-sized change (16 springs cut in two) with a patch instead: {patch_us:.1} µs.\n",
         result["command"].as_str().unwrap_or(""),
         result["date"].as_str().unwrap_or(""),
