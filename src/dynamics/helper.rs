@@ -56,6 +56,8 @@ pub struct Helper {
     shared: Arc<Shared>,
     thread: Option<JoinHandle<()>>,
     posted: AtomicU64,
+    /// A `join` is under way (another thread's `join` meanwhile runs both parts itself).
+    busy: AtomicBool,
 }
 
 impl std::fmt::Debug for Helper {
@@ -87,6 +89,7 @@ impl Helper {
             shared,
             thread,
             posted: AtomicU64::new(0),
+            busy: AtomicBool::new(false),
         }
     }
 
@@ -111,11 +114,17 @@ impl Helper {
     /// # Panics
     /// When `a` or `b` panics (after the helper is done with `b`).
     pub fn join<A: FnOnce(), B: FnOnce() + Send>(&self, a: A, b: B) {
-        let Some(thread) = &self.thread else {
+        let Some(thread) = self
+            .thread
+            .as_ref()
+            .filter(|_| !self.busy.swap(true, Ordering::Acquire))
+        else {
             a();
             b();
             return;
         };
+        // Released after the post is settled (declared before the guard, dropped after it).
+        let _busy = Release(&self.busy);
         let mut b = Some(b);
         let mut run_b = move || {
             if let Some(b) = b.take() {
@@ -195,6 +204,15 @@ impl Helper {
             }
         };
         self.join(take, take);
+    }
+}
+
+/// Clears a `join`'s busy flag when it ends, also by a panic.
+struct Release<'a>(&'a AtomicBool);
+
+impl Drop for Release<'_> {
+    fn drop(&mut self) {
+        self.0.store(false, Ordering::Release);
     }
 }
 
@@ -394,6 +412,38 @@ mod tests {
             let others: Vec<usize> = (0..cores).filter(|&c| c != pinned_to).collect();
             assert_eq!(helper_cores, others, "the helper kept the pinned core");
         }
+    }
+
+    #[test]
+    fn joins_from_several_threads_at_once_each_run_both_parts() {
+        let helper = Helper::spawn();
+        thread::scope(|scope| {
+            for t in 0..4u64 {
+                let helper = &helper;
+                scope.spawn(move || {
+                    for round in 0..500u64 {
+                        let (mut a, mut b) = (0u64, 0u64);
+                        let busy = || {
+                            for k in 0..2_000u64 {
+                                std::hint::black_box(k);
+                            }
+                        };
+                        helper.join(
+                            || {
+                                a = t + round;
+                                busy();
+                            },
+                            || {
+                                b = t * round + 1;
+                                busy();
+                            },
+                        );
+                        assert_eq!((a, b), (t + round, t * round + 1));
+                    }
+                });
+            }
+        });
+        assert!(helper.taken() <= helper.posted());
     }
 
     #[test]
