@@ -627,7 +627,8 @@ impl ForceKernel {
         }
         let cut = node_cut(n);
         let stamp = self.built_for.map(|(version, ..)| (version, n, all, cut));
-        if self.split.made_for != stamp || stamp.is_none() {
+        // `refresh` above set `built_for`: the stamp is always known here.
+        if self.split.made_for != stamp {
             self.split.classify(&self.batches, n, cut);
             self.split.made_for = stamp;
         }
