@@ -1062,11 +1062,47 @@ impl World {
     }
 
     fn step_with<C: StageClock>(&mut self, clock: &mut C) {
-        clock.enter(Stage::Tools);
-        let dt = self.params.dt;
-        let gravity = self.params.gravity;
         let mut counters = StepCounters::default();
-        let t_end = (self.tick + 1) as f64 * dt;
+        self.begin_tick(clock, &mut counters);
+        let attached = !self.attachments.is_empty();
+        if attached {
+            clock.enter(Stage::Forces);
+            self.attachments.compute(&self.bodies, self.params.dt);
+        }
+        for b in 0..self.bodies.len() {
+            self.step_body(b, attached, clock, &mut counters);
+        }
+        clock.enter(Stage::BodyContact);
+        self.contact_between_bodies(&mut counters);
+        clock.enter(Stage::Commit);
+        self.commit_bodies(&mut counters);
+        self.cut_tear_and_coarsen(clock, &mut counters);
+        // A cut that opened edges may have cut a body in parts: each becomes a body.
+        if self.systems.cutting {
+            clock.enter(Stage::Transection);
+            for b in 0..self.bodies.len() {
+                if self.cutters[b]
+                    .as_mut()
+                    .is_some_and(|c| std::mem::take(&mut c.check_parts))
+                {
+                    self.transect(b, &mut counters);
+                }
+            }
+        }
+        clock.enter(Stage::Guard);
+        self.guard_bodies(&mut counters);
+        for tool in &mut self.tools {
+            clamp_feedback(tool);
+        }
+        self.counters = counters;
+        self.tick += 1;
+    }
+
+    /// The tick's start: each tool's last force kept and its motion over the tick set up, its
+    /// feedback and the obstacles' reactions cleared, the obstacles' reach, the graspers' grasps.
+    fn begin_tick<C: StageClock>(&mut self, clock: &mut C, counters: &mut StepCounters) {
+        clock.enter(Stage::Tools);
+        let t_end = (self.tick + 1) as f64 * self.params.dt;
         for (tool, force) in self.tools.iter_mut().zip(self.previous_force.iter_mut()) {
             *force = tool.feedback.force_in_world.norm();
             tool.begin_tick(t_end);
@@ -1078,208 +1114,286 @@ impl World {
         for (reach, obstacle) in self.obstacle_reach.iter_mut().zip(&self.obstacles) {
             *reach = obstacle.shape.reach_in_world();
         }
+        if self.systems.tool_contact {
+            self.update_grasps(counters);
+        }
+    }
+
+    /// Body `b`'s part of the tick before the contact between bodies: its forces (and the
+    /// integration of an explicit body in the same pass), the nodes the tools hold, its solver's
+    /// integration, the tools' captures and the refinement under them, the obstacles and the
+    /// tools' push-out.
+    fn step_body<C: StageClock>(
+        &mut self,
+        b: usize,
+        attached: bool,
+        clock: &mut C,
+        counters: &mut StepCounters,
+    ) {
+        let cutting_blades = self.cutting_blades(b);
+        let fused = self.body_forces(b, attached, clock);
+        clock.enter(Stage::Contact);
+        self.hold_tool_nodes(b, fused);
+        clock.enter(Stage::Integration);
+        self.integrate_body(b, attached, fused, counters);
+        if self.systems.tool_contact {
+            self.capture_and_refine(b, cutting_blades, clock, counters);
+        }
+        clock.enter(Stage::Contact);
+        self.answer_obstacles_and_tools(b, cutting_blades, counters);
+    }
+
+    /// The tools whose blades cut body `b` this tick (bits by tool), which pass through it instead
+    /// of pressing (after pressing through its resistance, when it has one); the nodes the tools
+    /// hold brought up to date first.
+    fn cutting_blades(&mut self, b: usize) -> u64 {
         let systems = self.systems;
+        let body = &mut self.bodies[b];
+        let broad = &mut self.broad[b];
+        let cutter = &mut self.cutters[b];
         if systems.tool_contact {
-            self.update_grasps(&mut counters);
+            broad.held.refresh(&body.surface, body.topology_version);
         }
-        let attached = !self.attachments.is_empty();
-        if attached {
-            clock.enter(Stage::Forces);
-            self.attachments.compute(&self.bodies, dt);
-        }
-        for (b, (((((body, solver), kernel), refinement), broad), cutter)) in self
-            .bodies
-            .iter_mut()
-            .zip(self.solvers.iter_mut())
-            .zip(self.kernels.iter_mut())
-            .zip(self.refinements.iter_mut())
-            .zip(self.broad.iter_mut())
-            .zip(self.cutters.iter_mut())
-            .enumerate()
+        let mut cutting_blades: u64 = 0;
+        if systems.cutting
+            && let Some(cutter) = cutter.as_mut()
+            && cutter.blades
         {
-            if systems.tool_contact {
-                broad.held.refresh(&body.surface, body.topology_version);
+            cutting_blades = cutting_blade_mask(
+                cutter,
+                body,
+                &mut broad.held,
+                &self.tools,
+                &self.previous_force,
+            );
+        }
+        cutting_blades
+    }
+
+    /// Body `b`'s forces: springs, links, gravity, air and the attachments; an explicit body with
+    /// every node at the step is integrated in the same pass (true is returned), but for the nodes
+    /// the tools hold, which keep their velocity.
+    fn body_forces<C: StageClock>(&mut self, b: usize, attached: bool, clock: &mut C) -> bool {
+        let (dt, gravity, systems) = (self.params.dt, self.params.gravity, self.systems);
+        let body = &mut self.bodies[b];
+        let solver = &mut self.solvers[b];
+        let kernel = &mut self.kernels[b];
+        let broad = &mut self.broad[b];
+        let cutter = &mut self.cutters[b];
+        clock.enter(Stage::Forces);
+        kernel.refresh_with(body, cutter.as_ref().map(|c| &c.changes));
+        let helper = if self.params.helper_thread && body.node_count() >= SPLIT_NODES {
+            Some(self.helper.get())
+        } else {
+            None
+        };
+        kernel.edge_forces_with(body, helper);
+        if attached {
+            for (node, force) in self.attachments.forces_on(b) {
+                kernel.add_external(node, &force);
+                if let BodySolver::Multirate(m) = solver {
+                    m.add_external_force(node, &force);
+                }
             }
-            // Blades that cut this body pass through it instead of pressing (after pressing through
-            // its resistance, when it has one).
-            let mut cutting_blades: u64 = 0;
-            if systems.cutting
-                && let Some(cutter) = cutter.as_mut()
-                && cutter.blades
-            {
-                cutting_blades = cutting_blade_mask(
-                    cutter,
+        }
+        // An explicit body with every node at the step is integrated in the force stage's node
+        // pass; the held nodes keep their start velocity for the contact stage, which moves
+        // them. The others are integrated by their solver.
+        let fused = match solver {
+            BodySolver::Symplectic(_) => true,
+            BodySolver::Multirate(m) => m.fast.is_empty() && !m.rigid_substepped,
+            BodySolver::Implicit(_) => false,
+        };
+        let hold = systems.tool_contact && fused;
+        if hold {
+            broad.held.save_velocities(&body.surface);
+        }
+        let pass = if fused {
+            NodePass::IntegrateAll
+        } else {
+            NodePass::Forces
+        };
+        kernel.node_pass_with(body, &gravity, dt, pass, helper);
+        if hold {
+            broad.held.restore_velocities(&mut body.surface);
+            // Their velocities are not the node pass's: they join their blocks.
+            kernel.blocks.include_all(&body.surface, broad.held.nodes());
+        }
+        fused
+    }
+
+    /// The nodes of body `b` the tools hold, moved with them (`fused`: the force pass integrated
+    /// the body).
+    fn hold_tool_nodes(&mut self, b: usize, fused: bool) {
+        let dt = self.params.dt;
+        let body = &mut self.bodies[b];
+        let kernel = &mut self.kernels[b];
+        let broad = &mut self.broad[b];
+        if self.systems.tool_contact {
+            hold_contact_nodes(
+                &mut body.surface,
+                &mut self.tools,
+                body.params.friction,
+                dt,
+                fused,
+                &mut broad.held,
+            );
+            // The held nodes moved after the node pass: their trajectories join the boxes (a
+            // node released here ends where the node pass put it, the same operations, but the
+            // boxes must not rest on that).
+            kernel.blocks.include_all(&body.surface, broad.held.nodes());
+        }
+    }
+
+    /// Body `b`'s solver integrates what the force pass did not (a multi-rate body's sub-stepped
+    /// nodes, with last tick's contact forces carried into their substeps; an implicit body).
+    fn integrate_body(
+        &mut self,
+        b: usize,
+        attached: bool,
+        fused: bool,
+        counters: &mut StepCounters,
+    ) {
+        let (dt, gravity) = (self.params.dt, self.params.gravity);
+        let body = &mut self.bodies[b];
+        let solver = &mut self.solvers[b];
+        let kernel = &mut self.kernels[b];
+        match solver {
+            BodySolver::Symplectic(_) => {}
+            BodySolver::Multirate(m) => {
+                // Last tick's contact forces on the sub-stepped nodes, felt by their substeps
+                // and taken back after them (the response's impulses follow).
+                let version = body.topology_version;
+                let carried = || {
+                    self.body_contact
+                        .as_ref()
+                        .into_iter()
+                        .flat_map(move |scratch| scratch.carried_on(b, version))
+                };
+                m.carry_contact_forces(body, carried());
+                counters.obstacle_contacts += m.integrate(
                     body,
-                    &mut broad.held,
-                    &self.tools,
-                    &self.previous_force,
-                );
-            }
-            clock.enter(Stage::Forces);
-            kernel.refresh_with(body, cutter.as_ref().map(|c| &c.changes));
-            let helper = if self.params.helper_thread && body.node_count() >= SPLIT_NODES {
-                Some(self.helper.get())
-            } else {
-                None
-            };
-            kernel.edge_forces_with(body, helper);
-            if attached {
-                for (node, force) in self.attachments.forces_on(b) {
-                    kernel.add_external(node, &force);
-                    if let BodySolver::Multirate(m) = solver {
-                        m.add_external_force(node, &force);
-                    }
-                }
-            }
-            // An explicit body with every node at the step is integrated in the force stage's node
-            // pass; the held nodes keep their start velocity for the contact stage, which moves
-            // them. The others are integrated by their solver.
-            let fused = match solver {
-                BodySolver::Symplectic(_) => true,
-                BodySolver::Multirate(m) => m.fast.is_empty() && !m.rigid_substepped,
-                BodySolver::Implicit(_) => false,
-            };
-            let hold = systems.tool_contact && fused;
-            if hold {
-                broad.held.save_velocities(&body.surface);
-            }
-            let pass = if fused {
-                NodePass::IntegrateAll
-            } else {
-                NodePass::Forces
-            };
-            kernel.node_pass_with(body, &gravity, dt, pass, helper);
-            if hold {
-                broad.held.restore_velocities(&mut body.surface);
-                // Their velocities are not the node pass's: they join their blocks.
-                kernel.blocks.include_all(&body.surface, broad.held.nodes());
-            }
-            clock.enter(Stage::Contact);
-            if systems.tool_contact {
-                hold_contact_nodes(
-                    &mut body.surface,
-                    &mut self.tools,
-                    body.params.friction,
                     dt,
+                    &gravity,
+                    (&self.obstacles, &self.obstacle_reach),
+                    &mut self.obstacle_reactions,
                     fused,
-                    &mut broad.held,
                 );
-                // The held nodes moved after the node pass: their trajectories join the boxes (a
-                // node released here ends where the node pass put it, the same operations, but the
-                // boxes must not rest on that).
-                kernel.blocks.include_all(&body.surface, broad.held.nodes());
-            }
-            clock.enter(Stage::Integration);
-            match solver {
-                BodySolver::Symplectic(_) => {}
-                BodySolver::Multirate(m) => {
-                    // Last tick's contact forces on the sub-stepped nodes, felt by their substeps
-                    // and taken back after them (the response's impulses follow).
-                    let version = body.topology_version;
-                    let carried = || {
-                        self.body_contact
-                            .as_ref()
-                            .into_iter()
-                            .flat_map(move |scratch| scratch.carried_on(b, version))
-                    };
-                    m.carry_contact_forces(body, carried());
-                    counters.obstacle_contacts += m.integrate(
-                        body,
-                        dt,
-                        &gravity,
-                        (&self.obstacles, &self.obstacle_reach),
-                        &mut self.obstacle_reactions,
-                        fused,
-                    );
-                    m.take_back_contact_forces(body, carried(), dt);
-                    // Nodes moved by the solver (none when the node pass integrated them all and
-                    // no contact force was carried) are not in the node pass's boxes.
-                    if !fused || carried().next().is_some() {
-                        kernel.blocks.drop_all();
-                    }
-                }
-                BodySolver::Implicit(i) => {
-                    i.integrate(body, dt);
+                m.take_back_contact_forces(body, carried(), dt);
+                // Nodes moved by the solver (none when the node pass integrated them all and
+                // no contact force was carried) are not in the node pass's boxes.
+                if !fused || carried().next().is_some() {
                     kernel.blocks.drop_all();
                 }
             }
-            if attached && let BodySolver::Multirate(m) = solver {
-                for (node, _) in self.attachments.forces_on(b) {
-                    m.clear_external_force(node);
-                }
-            }
-            if systems.tool_contact {
-                for (tool_index, tool) in self.tools.iter_mut().enumerate() {
-                    if cutting_blades & tool_bit(tool_index) != 0 {
-                        continue;
-                    }
-                    clock.enter(Stage::BroadPhase);
-                    let blocks = kernel.blocks.bounds(body.node_count());
-                    if let (Some(check), Some(blocks)) = (self.node_box_check.as_mut(), blocks) {
-                        check.take(&body.surface, blocks);
-                    }
-                    capture_broad_phase(&body.surface, tool, blocks, &mut broad.nodes);
-                    clock.enter(Stage::ToolCcd);
-                    counters.tool_captures +=
-                        capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
-                    broad.held.add_captured(&body.surface, &broad.nodes);
-                    // The captured nodes moved (to where they touched, carried with the tool).
-                    kernel.blocks.include_all(&body.surface, &broad.nodes);
-                }
-                clock.enter(Stage::Subdivision);
-                if let Some(refinement) = refinement.as_mut() {
-                    let inserted = refinement.refine_at_tools(
-                        body,
-                        &self.tools,
-                        cutting_blades,
-                        self.tick + 1,
-                        dt,
-                    );
-                    if inserted > 0 {
-                        counters.refinements += inserted;
-                        solver.topology_changed(body, dt, None);
-                        kernel.blocks.drop_all();
-                    }
-                }
-            }
-            clock.enter(Stage::Contact);
-            if systems.obstacle_contact {
-                counters.obstacle_contacts += resolve_nodes_against_obstacles(
-                    &mut body.surface,
-                    &self.obstacles,
-                    &mut self.obstacle_reactions,
-                    dt,
-                    Some(&mut kernel.blocks),
-                );
-                // The implicit body answers its contacts within the step: the nodes the contact
-                // stopped are pinned and the rest solved again, a few rounds at most.
-                if let BodySolver::Implicit(i) = solver {
-                    for _ in 0..CONTACT_ROUNDS {
-                        if !i.pin_contacts(body, dt) {
-                            break;
-                        }
-                        counters.obstacle_contacts += resolve_nodes_against_obstacles(
-                            &mut body.surface,
-                            &self.obstacles,
-                            &mut self.obstacle_reactions,
-                            dt,
-                            None,
-                        );
-                    }
-                }
-            }
-            if systems.tool_contact {
-                counters.tool_push_outs += push_out_of_tools(
-                    &mut body.surface,
-                    &self.tools,
-                    cutting_blades,
-                    dt,
-                    Some(&mut kernel.blocks),
-                );
+            BodySolver::Implicit(i) => {
+                i.integrate(body, dt);
+                kernel.blocks.drop_all();
             }
         }
-        clock.enter(Stage::BodyContact);
-        if systems.body_contact
+        if attached && let BodySolver::Multirate(m) = solver {
+            for (node, _) in self.attachments.forces_on(b) {
+                m.clear_external_force(node);
+            }
+        }
+    }
+
+    /// The tools capture the nodes of body `b` they reach this tick (broad phase, then the
+    /// continuous test), and the refinement subdivides under them.
+    fn capture_and_refine<C: StageClock>(
+        &mut self,
+        b: usize,
+        cutting_blades: u64,
+        clock: &mut C,
+        counters: &mut StepCounters,
+    ) {
+        let dt = self.params.dt;
+        let body = &mut self.bodies[b];
+        let solver = &mut self.solvers[b];
+        let kernel = &mut self.kernels[b];
+        let refinement = &mut self.refinements[b];
+        let broad = &mut self.broad[b];
+        for (tool_index, tool) in self.tools.iter_mut().enumerate() {
+            if cutting_blades & tool_bit(tool_index) != 0 {
+                continue;
+            }
+            clock.enter(Stage::BroadPhase);
+            let blocks = kernel.blocks.bounds(body.node_count());
+            if let (Some(check), Some(blocks)) = (self.node_box_check.as_mut(), blocks) {
+                check.take(&body.surface, blocks);
+            }
+            capture_broad_phase(&body.surface, tool, blocks, &mut broad.nodes);
+            clock.enter(Stage::ToolCcd);
+            counters.tool_captures +=
+                capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
+            broad.held.add_captured(&body.surface, &broad.nodes);
+            // The captured nodes moved (to where they touched, carried with the tool).
+            kernel.blocks.include_all(&body.surface, &broad.nodes);
+        }
+        clock.enter(Stage::Subdivision);
+        if let Some(refinement) = refinement.as_mut() {
+            let inserted =
+                refinement.refine_at_tools(body, &self.tools, cutting_blades, self.tick + 1, dt);
+            if inserted > 0 {
+                counters.refinements += inserted;
+                solver.topology_changed(body, dt, None);
+                kernel.blocks.drop_all();
+            }
+        }
+    }
+
+    /// Body `b`'s nodes against the obstacles (an implicit body solved again with the stopped
+    /// nodes pinned), then pushed out of the tools.
+    fn answer_obstacles_and_tools(
+        &mut self,
+        b: usize,
+        cutting_blades: u64,
+        counters: &mut StepCounters,
+    ) {
+        let (dt, systems) = (self.params.dt, self.systems);
+        let body = &mut self.bodies[b];
+        let solver = &mut self.solvers[b];
+        let kernel = &mut self.kernels[b];
+        if systems.obstacle_contact {
+            counters.obstacle_contacts += resolve_nodes_against_obstacles(
+                &mut body.surface,
+                &self.obstacles,
+                &mut self.obstacle_reactions,
+                dt,
+                Some(&mut kernel.blocks),
+            );
+            // The implicit body answers its contacts within the step: the nodes the contact
+            // stopped are pinned and the rest solved again, a few rounds at most.
+            if let BodySolver::Implicit(i) = solver {
+                for _ in 0..CONTACT_ROUNDS {
+                    if !i.pin_contacts(body, dt) {
+                        break;
+                    }
+                    counters.obstacle_contacts += resolve_nodes_against_obstacles(
+                        &mut body.surface,
+                        &self.obstacles,
+                        &mut self.obstacle_reactions,
+                        dt,
+                        None,
+                    );
+                }
+            }
+        }
+        if systems.tool_contact {
+            counters.tool_push_outs += push_out_of_tools(
+                &mut body.surface,
+                &self.tools,
+                cutting_blades,
+                dt,
+                Some(&mut kernel.blocks),
+            );
+        }
+    }
+
+    /// The contact between bodies (the response, then the collision net), and its counters.
+    fn contact_between_bodies(&mut self, counters: &mut StepCounters) {
+        let dt = self.params.dt;
+        if self.systems.body_contact
             && let Some(scratch) = self.body_contact.as_mut()
         {
             let solvers = &self.solvers;
@@ -1314,7 +1428,12 @@ impl World {
                 }
             }
         }
-        clock.enter(Stage::Commit);
+    }
+
+    /// The end positions committed, the rigid components integrated (where their solver does not),
+    /// plastic flow.
+    fn commit_bodies(&mut self, counters: &mut StepCounters) {
+        let dt = self.params.dt;
         for (body, solver) in self.bodies.iter_mut().zip(&self.solvers) {
             commit_positions(&mut body.surface);
             if !solver.integrates_rigid() {
@@ -1326,7 +1445,12 @@ impl World {
                     plasticity::flow(body, &plasticity, plasticity.tick_fraction(dt));
             }
         }
-        // Cuts along the blades' sweeps, then coarsening, before the guard looks at the bodies.
+    }
+
+    /// Cuts along the blades' sweeps and tears, then coarsening, before the guard looks at the
+    /// bodies.
+    fn cut_tear_and_coarsen<C: StageClock>(&mut self, clock: &mut C, counters: &mut StepCounters) {
+        let (dt, systems) = (self.params.dt, self.systems);
         let blades = self
             .tools
             .iter()
@@ -1368,45 +1492,8 @@ impl World {
                     None
                 };
                 clock.enter(Stage::Cut);
-                let mut changed = false;
-                for (tool_index, tool) in self.tools.iter().enumerate() {
-                    if !cutter.blades
-                        || !matches!(tool.shape, ToolShape::Blade { .. })
-                        || tool.part_count == 0
-                    {
-                        continue;
-                    }
-                    let pressing = cutter.settings.resistance > 0.0 && !cutter.through[tool_index];
-                    if pressing {
-                        continue;
-                    }
-                    let (start, end) = (tool.parts_start[0], tool.parts_end[0]);
-                    let step = cutter.cut_within(
-                        body,
-                        tool_index,
-                        [start.a, start.b],
-                        [end.a, end.b],
-                        extent.as_ref(),
-                    );
-                    if cutter.settings.resistance > 0.0 {
-                        if step.nodes_near == 0 {
-                            cutter.away[tool_index] += 1;
-                            if cutter.away[tool_index] > BLADE_AWAY_TICKS {
-                                cutter.through[tool_index] = false;
-                                cutter.away[tool_index] = 0;
-                            }
-                        } else {
-                            cutter.away[tool_index] = 0;
-                        }
-                    }
-                    if step.changed {
-                        changed = true;
-                        counters.opened_edges += step.opened;
-                    }
-                    if step.opened > 0 {
-                        cutter.check_parts = true;
-                    }
-                }
+                let mut changed =
+                    cut_along_blades(cutter, body, &self.tools, extent.as_ref(), counters);
                 let cut = changed;
                 // Springs stretched past the tearing threshold break, a bounded number per tick.
                 if let Some(mut tearer) = cutter.tearer.take() {
@@ -1449,19 +1536,11 @@ impl World {
                 }
             }
         }
-        // A cut that opened edges may have cut a body in parts: each becomes a body.
-        if systems.cutting {
-            clock.enter(Stage::Transection);
-            for b in 0..self.bodies.len() {
-                if self.cutters[b]
-                    .as_mut()
-                    .is_some_and(|c| std::mem::take(&mut c.check_parts))
-                {
-                    self.transect(b, &mut counters);
-                }
-            }
-        }
-        clock.enter(Stage::Guard);
+    }
+
+    /// The divergence guard of every body, with the work done on it from outside this tick.
+    fn guard_bodies(&mut self, counters: &mut StepCounters) {
+        let gravity = self.params.gravity;
         // Work the tools did on the tissue this tick (the tissue pushes the tool with the feedback).
         let tool_work: f64 = self
             .tools
@@ -1549,11 +1628,6 @@ impl World {
                 }
             }
         }
-        for tool in &mut self.tools {
-            clamp_feedback(tool);
-        }
-        self.counters = counters;
-        self.tick += 1;
     }
 
     /// Deepest penetration of any node of `body` into an obstacle or a tool (m), 0 when none.
@@ -1642,4 +1716,48 @@ impl World {
             .map(|b| symplectic_margin(b, self.params.dt))
             .collect()
     }
+}
+
+/// Cuts `body` along the sweep of each blade that is through it this tick (one still pressing
+/// against its resistance is not; a blade away from it for long enough presses again): true when
+/// the topology changed.
+fn cut_along_blades(
+    cutter: &mut Cutter,
+    body: &mut Body,
+    tools: &[Tool],
+    extent: Option<&NodeExtent>,
+    counters: &mut StepCounters,
+) -> bool {
+    let mut changed = false;
+    for (tool_index, tool) in tools.iter().enumerate() {
+        if !cutter.blades || !matches!(tool.shape, ToolShape::Blade { .. }) || tool.part_count == 0
+        {
+            continue;
+        }
+        let pressing = cutter.settings.resistance > 0.0 && !cutter.through[tool_index];
+        if pressing {
+            continue;
+        }
+        let (start, end) = (tool.parts_start[0], tool.parts_end[0]);
+        let step = cutter.cut_within(body, tool_index, [start.a, start.b], [end.a, end.b], extent);
+        if cutter.settings.resistance > 0.0 {
+            if step.nodes_near == 0 {
+                cutter.away[tool_index] += 1;
+                if cutter.away[tool_index] > BLADE_AWAY_TICKS {
+                    cutter.through[tool_index] = false;
+                    cutter.away[tool_index] = 0;
+                }
+            } else {
+                cutter.away[tool_index] = 0;
+            }
+        }
+        if step.changed {
+            changed = true;
+            counters.opened_edges += step.opened;
+        }
+        if step.opened > 0 {
+            cutter.check_parts = true;
+        }
+    }
+    changed
 }
