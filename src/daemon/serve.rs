@@ -22,7 +22,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::server::Server;
+use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::{Node, ipc};
 
 use crate::daemon::feedback_payload;
 use crate::daemon::input::{InputLimits, ToolInputState};
@@ -252,316 +256,35 @@ pub fn serve(
         }
     }
     let node = create_node()?;
-    let mut world = World::from_scene(scene);
-    let mut known_bodies = world.bodies.len();
-    let dt = world.params.dt;
-
-    // Ports of the externally driven tools, by tool index.
-    let mut pose_subscribers = Vec::new();
-    let mut feedback_publishers = Vec::new();
-    let mut ipc_tools = Vec::new();
-    for (index, tool) in world.tools.iter().enumerate() {
-        if matches!(tool.input, ToolInput::Ipc) {
-            let pose = pose_service(&node, &options.prefix, &tool.name)?;
-            let feedback = feedback_service(&node, &options.prefix, &tool.name)?;
-            pose_subscribers.push(pose.subscriber_builder().create()?);
-            let publisher = feedback.publisher_builder().create()?;
-            publisher.send_copy(ToolFeedbackV1 {
-                flags: FEEDBACK_STALE,
-                ..ToolFeedbackV1::default()
-            })?;
-            feedback_publishers.push(publisher);
-            ipc_tools.push(index);
-        }
-    }
-    let mut inputs = vec![ToolInputState::default(); ipc_tools.len()];
-    let mut echo = vec![(0u64, 0u64); ipc_tools.len()];
-
-    let stats_publisher = stats_service(&node, &options.prefix)?
-        .publisher_builder()
-        .create()?;
-    let mut meshes = MeshSchedule::new(&world, options.display_rate_hz, options.keyframe_every_s);
-    let mesh_publisher = mesh_service(&node, &options.prefix)?
-        .publisher_builder()
-        .initial_max_slice_len(meshes.max_message_bytes())
-        .create()?;
-    let control_server = control_service(&node, &options.prefix)?
-        .server_builder()
-        .create()?;
-
+    let mut daemon = Daemon::new(&node, scene, options, sink)?;
+    let dt = daemon.dt;
     let max_ticks = options.duration.map(|d| (d / dt).round() as u64);
     let period = Duration::from_secs_f64(dt);
-    let period_us = dt * 1e6;
-    // IPC failing on every tick for a second (or every poll of a lockstep wait for a second of wall
-    // time) is what the daemon cannot go on from; anything shorter is counted and outlived.
-    let fatal_streak = ((1.0 / dt).round() as u64).max(1);
-    let fatal_wait = Duration::from_secs(1);
-    // The bound depends on masses and stiffnesses only: computed once (again after a reset).
-    let mut stability_margin = world
-        .stability_margins()
-        .iter()
-        .map(|m| m.margin)
-        .fold(f64::INFINITY, f64::min);
-    let mut stats = LoopStats::default();
-    let mut whole_run = LoopStats::default();
-    let mut stats_out = StatsV1::default();
-    let mut summary = ServeSummary::default();
-    let mut errors = IpcErrors::new();
-    let mut paused = false;
-    // The daemon's receive clock: loop ticks since start, paused ones included (in lockstep, one
-    // per pose). Input checks measure time on it, never on the bridges' time stamps.
-    let mut clock: u64 = 0;
     let mut deadline = Instant::now() + period;
-    let spin = Duration::from_micros(200);
-
     loop {
-        if stop.load(Ordering::Relaxed) || max_ticks.is_some_and(|m| world.tick >= m) {
+        if stop.load(Ordering::Relaxed) || max_ticks.is_some_and(|m| daemon.world.tick >= m) {
             break;
         }
         // Wait for this tick's turn.
-        let lateness_us = if options.lockstep && !ipc_tools.is_empty() {
-            let mut polls = 0u32;
-            let mut failing_since: Option<Instant> = None;
-            'wait: loop {
-                if stop.load(Ordering::Relaxed) {
-                    break 'wait;
-                }
-                let mut any = false;
-                let mut failed = false;
-                for s in &pose_subscribers {
-                    match s.has_samples() {
-                        Ok(has) => any |= has,
-                        Err(e) => {
-                            errors.note("pose subscriber (has_samples)", &e);
-                            failed = true;
-                        }
-                    }
-                }
-                if any {
-                    break 'wait;
-                }
-                if failed {
-                    let since = *failing_since.get_or_insert_with(Instant::now);
-                    if since.elapsed() > fatal_wait {
-                        summary.fatal = Some(format!(
-                            "iceoryx2 failed on every poll for pose samples for {} s",
-                            fatal_wait.as_secs()
-                        ));
-                        break 'wait;
-                    }
-                } else {
-                    failing_since = None;
-                }
-                // While idle, let late subscribers (a bridge that starts after us) receive the last
-                // feedback, so they can tell the daemon is up.
-                polls += 1;
-                if polls % 500 == 0 {
-                    for publisher in &feedback_publishers {
-                        errors.ok(
-                            "feedback publisher (connections)",
-                            publisher.update_connections(),
-                        );
-                    }
-                }
-                std::thread::sleep(Duration::from_micros(20));
-            }
-            if stop.load(Ordering::Relaxed) || summary.fatal.is_some() {
+        let lateness_us = if options.lockstep && !daemon.ports.ipc_tools.is_empty() {
+            daemon.wait_for_a_pose(&stop);
+            if stop.load(Ordering::Relaxed) || daemon.summary.fatal.is_some() {
                 break;
             }
             0.0
         } else {
-            let now = Instant::now();
-            if deadline > now + spin {
-                std::thread::sleep(deadline - now - spin);
-            }
-            while Instant::now() < deadline {
-                std::hint::spin_loop();
-            }
-            Instant::now()
-                .saturating_duration_since(deadline)
-                .as_secs_f64()
-                * 1e6
+            wait_until(deadline)
         };
         let started = Instant::now();
-        let faulty = options
-            .inject_ipc_faults
-            .is_some_and(|f| clock >= f.from_tick && clock - f.from_tick < f.ticks);
-
-        // Control.
-        while let Some(request) = errors
-            .ok("control server (receive)", control_server.receive())
-            .flatten()
-        {
-            let command = request.payload().command;
-            let status = match command {
-                CONTROL_RESET => {
-                    sink.event(world.tick, event::RESET, None);
-                    world = World::from_scene(scene);
-                    known_bodies = world.bodies.len();
-                    meshes.reset(&world);
-                    stability_margin = world
-                        .stability_margins()
-                        .iter()
-                        .map(|m| m.margin)
-                        .fold(f64::INFINITY, f64::min);
-                    for input in &mut inputs {
-                        *input = ToolInputState::default();
-                    }
-                    0
-                }
-                CONTROL_PAUSE => {
-                    sink.event(world.tick, event::PAUSE, None);
-                    paused = true;
-                    0
-                }
-                CONTROL_RESUME => {
-                    sink.event(world.tick, event::RESUME, None);
-                    paused = false;
-                    0
-                }
-                CONTROL_KEYFRAME => {
-                    meshes.request_keyframe();
-                    0
-                }
-                _ => -1,
-            };
-            errors.ok(
-                "control server (respond)",
-                request.send_copy(ControlResponseV1 {
-                    command,
-                    status,
-                    tick: world.tick,
-                }),
-            );
-        }
-
-        // Newest pose of every external tool.
-        for (k, &tool_index) in ipc_tools.iter().enumerate() {
-            let mut newest = None;
-            while let Some(sample) = errors
-                .ok("pose subscriber (receive)", pose_subscribers[k].receive())
-                .flatten()
-            {
-                newest = Some(*sample.payload());
-            }
-            inputs[k].rejected_this_tick = false;
-            if let Some(pose) = newest {
-                match inputs[k].offer(&pose, clock, dt, &options.limits) {
-                    Ok((tool_pose, jaw)) => {
-                        world.tools[tool_index].set_target(tool_pose, jaw);
-                        echo[k] = (pose.seq, pose.device_time_ns);
-                        sink.input(world.tick, tool_index, &pose, monotonic_ns());
-                    }
-                    Err(_) => sink.event(world.tick, event::INPUT_REJECTED, Some(tool_index)),
-                }
-            }
-            if inputs[k].update_staleness(clock, &options.limits) {
-                world.tools[tool_index].deactivate();
-                sink.event(world.tick, event::DISCONNECT, Some(tool_index));
-            }
-        }
-
-        let stepped = !paused;
+        daemon.answer_control();
+        daemon.take_poses();
+        let (stepped, diverged) = daemon.step();
+        daemon.send_feedback(stepped, diverged);
         if stepped {
-            world.step();
+            daemon.send_meshes();
         }
-        // The divergence guard restored a body in this step: flag every tool's feedback, record
-        // which body and why, count it.
-        sink.bodies_added(&world, &mut known_bodies);
-        let diverged = stepped && crate::daemon::guard_acted(&world);
-        if diverged {
-            summary.guard_ticks += 1;
-            for (b, guard) in world.guards.iter().enumerate() {
-                if guard.acted {
-                    summary.guard_events += 1;
-                    if let Some(cause) = guard.last_cause {
-                        sink.guard(world.tick, b, cause);
-                    }
-                }
-            }
-        }
-
-        // Feedback.
-        for (k, &tool_index) in ipc_tools.iter().enumerate() {
-            let mut payload = feedback_payload(
-                &world.tools[tool_index],
-                world.tick,
-                inputs[k].connected,
-                inputs[k].rejected_this_tick,
-                echo[k],
-            );
-            if diverged {
-                payload.flags |= FEEDBACK_DIVERGED;
-            }
-            if faulty {
-                errors.note("feedback publisher (send)", &"injected fault");
-            } else {
-                errors.ok(
-                    "feedback publisher (send)",
-                    feedback_publishers[k].send_copy(payload),
-                );
-            }
-            if stepped {
-                sink.feedback(tool_index, &payload);
-            }
-        }
-
-        // Display. A message iceoryx2 refuses is lost to the displays (they resynchronise on the
-        // next keyframe, or ask for one); it is still recorded, as the daemon produced it.
-        if stepped {
-            let _ = meshes.produce(&world, |header, bytes| -> Result<(), ()> {
-                if let Some(mut sample) = errors.ok(
-                    "mesh publisher (loan)",
-                    mesh_publisher.loan_slice_uninit(bytes.len()),
-                ) {
-                    *sample.user_header_mut() = *header;
-                    errors.ok(
-                        "mesh publisher (send)",
-                        sample.write_from_slice(bytes).send(),
-                    );
-                }
-                sink.mesh(header, bytes);
-                Ok(())
-            });
-        }
-
-        // Statistics.
-        let compute_us = started.elapsed().as_secs_f64() * 1e6;
-        stats.record(compute_us, lateness_us, period_us);
-        whole_run.record(compute_us, lateness_us, period_us);
-        if compute_us > period_us {
-            sink.event(world.tick, event::SYNCHRONICITY_MISS, None);
-        }
-        summary.compute_max_us = summary.compute_max_us.max(compute_us);
-        summary.compute_mean_us += compute_us;
-        if stats.window_ticks() >= 1000 {
-            stats.close_window(&mut stats_out);
-            stats_out.tick = world.tick;
-            stats_out.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
-            stats_out.disconnects = inputs.iter().map(|i| i.disconnects).sum();
-            stats_out.active_systems = active_system_bits(&world);
-            stats_out.tools_connected = ipc_tools
-                .iter()
-                .zip(&inputs)
-                .filter(|(_, i)| i.connected)
-                .fold(0u32, |bits, (&t, _)| bits | (1u32 << t.min(31)));
-            stats_out.paused = paused as u32;
-            stats_out.dropped_records = sink.dropped().min(u32::MAX as u64) as u32;
-            stats_out.stability_margin = stability_margin;
-            stats_out.guard_events = summary.guard_events;
-            stats_out.ipc_errors = errors.total;
-            errors.ok(
-                "stats publisher (send)",
-                stats_publisher.send_copy(stats_out),
-            );
-            sink.stats(&stats_out);
-        }
-        summary.ticks += 1;
-        clock += 1;
-        if errors.end_tick() >= fatal_streak {
-            summary.fatal = Some(format!(
-                "iceoryx2 failed on each of the last {fatal_streak} ticks"
-            ));
+        daemon.close_tick(started.elapsed().as_secs_f64() * 1e6, lateness_us);
+        if daemon.summary.fatal.is_some() {
             break;
         }
         deadline += period;
@@ -571,18 +294,430 @@ pub fn serve(
             deadline = now + period;
         }
     }
-    summary.compute_mean_us /= summary.ticks.max(1) as f64;
-    summary.compute_histogram = whole_run.compute_histogram().to_vec();
-    summary.lateness_histogram = whole_run.lateness_histogram().to_vec();
-    let mut overall = StatsV1::default();
-    whole_run.close_window(&mut overall);
-    summary.compute_p99_us = overall.compute_p99_us;
-    summary.synchronicity_misses = stats.synchronicity_misses;
-    summary.rejected_inputs = inputs.iter().map(|i| i.rejected).sum();
-    summary.disconnects = inputs.iter().map(|i| i.disconnects).sum();
-    summary.ipc_errors = errors.total;
-    if errors.total > 0 {
-        summary.first_ipc_error = Some(errors.first.clone());
+    Ok(daemon.finish())
+}
+
+/// Sleeps to shortly before `deadline`, spins the rest; returns how late it woke (µs).
+fn wait_until(deadline: Instant) -> f64 {
+    let spin = Duration::from_micros(200);
+    let now = Instant::now();
+    if deadline > now + spin {
+        std::thread::sleep(deadline - now - spin);
     }
-    Ok(summary)
+    while Instant::now() < deadline {
+        std::hint::spin_loop();
+    }
+    Instant::now()
+        .saturating_duration_since(deadline)
+        .as_secs_f64()
+        * 1e6
+}
+
+/// The daemon's iceoryx2 ports for one run.
+struct Ports {
+    /// Indices of the externally driven tools; their pose subscribers and feedback publishers, in
+    /// the same order.
+    ipc_tools: Vec<usize>,
+    poses: Vec<Subscriber<ipc::Service, ToolPoseV1, ()>>,
+    feedback: Vec<Publisher<ipc::Service, ToolFeedbackV1, ()>>,
+    stats: Publisher<ipc::Service, StatsV1, ()>,
+    meshes: Publisher<ipc::Service, [u8], MeshHeaderV1>,
+    control: Server<ipc::Service, ControlRequestV1, (), ControlResponseV1, ()>,
+}
+
+impl Ports {
+    /// Creates the services and ports of `world`'s run; each tool's feedback starts stale.
+    fn open(
+        node: &Node<ipc::Service>,
+        world: &World,
+        prefix: &str,
+        max_mesh_bytes: usize,
+    ) -> Result<Self, IpcError> {
+        let mut poses = Vec::new();
+        let mut feedback = Vec::new();
+        let mut ipc_tools = Vec::new();
+        for (index, tool) in world.tools.iter().enumerate() {
+            if matches!(tool.input, ToolInput::Ipc) {
+                let pose = pose_service(node, prefix, &tool.name)?;
+                let feedback_of = feedback_service(node, prefix, &tool.name)?;
+                poses.push(pose.subscriber_builder().create()?);
+                let publisher = feedback_of.publisher_builder().create()?;
+                publisher.send_copy(ToolFeedbackV1 {
+                    flags: FEEDBACK_STALE,
+                    ..ToolFeedbackV1::default()
+                })?;
+                feedback.push(publisher);
+                ipc_tools.push(index);
+            }
+        }
+        Ok(Self {
+            ipc_tools,
+            poses,
+            feedback,
+            stats: stats_service(node, prefix)?.publisher_builder().create()?,
+            meshes: mesh_service(node, prefix)?
+                .publisher_builder()
+                .initial_max_slice_len(max_mesh_bytes)
+                .create()?,
+            control: control_service(node, prefix)?.server_builder().create()?,
+        })
+    }
+}
+
+/// The loop's state from tick to tick: the world, the tools' inputs, the display schedule, the
+/// statistics and the summary.
+struct Daemon<'a> {
+    scene: &'a Scene,
+    options: &'a ServeOptions,
+    sink: &'a RecordSink,
+    ports: Ports,
+    world: World,
+    /// Bodies the recording knows of (a transection adds some).
+    known_bodies: usize,
+    inputs: Vec<ToolInputState>,
+    /// Per external tool, the sequence number and device time of the pose last taken.
+    echo: Vec<(u64, u64)>,
+    meshes: MeshSchedule,
+    /// The explicit scheme's stability bound, which depends on masses and stiffnesses only:
+    /// computed once (again after a reset).
+    stability_margin: f64,
+    /// This window's statistics, and the whole run's.
+    stats: LoopStats,
+    whole_run: LoopStats,
+    stats_out: StatsV1,
+    summary: ServeSummary,
+    errors: IpcErrors,
+    paused: bool,
+    /// The daemon's receive clock: loop ticks since start, paused ones included (in lockstep, one
+    /// per pose). Input checks measure time on it, never on the bridges' time stamps.
+    clock: u64,
+    dt: f64,
+    period_us: f64,
+    /// IPC failing on every tick for a second (or every poll of a lockstep wait for a second of
+    /// wall time) is what the daemon cannot go on from; anything shorter is counted and outlived.
+    fatal_streak: u64,
+}
+
+impl<'a> Daemon<'a> {
+    fn new(
+        node: &Node<ipc::Service>,
+        scene: &'a Scene,
+        options: &'a ServeOptions,
+        sink: &'a RecordSink,
+    ) -> Result<Self, IpcError> {
+        let world = World::from_scene(scene);
+        let meshes = MeshSchedule::new(&world, options.display_rate_hz, options.keyframe_every_s);
+        let ports = Ports::open(node, &world, &options.prefix, meshes.max_message_bytes())?;
+        let externals = ports.ipc_tools.len();
+        let dt = world.params.dt;
+        Ok(Self {
+            scene,
+            options,
+            sink,
+            ports,
+            known_bodies: world.bodies.len(),
+            inputs: vec![ToolInputState::default(); externals],
+            echo: vec![(0u64, 0u64); externals],
+            meshes,
+            stability_margin: least_stability_margin(&world),
+            world,
+            stats: LoopStats::default(),
+            whole_run: LoopStats::default(),
+            stats_out: StatsV1::default(),
+            summary: ServeSummary::default(),
+            errors: IpcErrors::new(),
+            paused: false,
+            clock: 0,
+            dt,
+            period_us: dt * 1e6,
+            fatal_streak: ((1.0 / dt).round() as u64).max(1),
+        })
+    }
+
+    /// In lockstep: waits until a pose is there, or `stop` is set, or polling has failed for a
+    /// second (then `summary.fatal` is set).
+    fn wait_for_a_pose(&mut self, stop: &AtomicBool) {
+        let fatal_wait = Duration::from_secs(1);
+        let mut polls = 0u32;
+        let mut failing_since: Option<Instant> = None;
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                return;
+            }
+            let mut any = false;
+            let mut failed = false;
+            for s in &self.ports.poses {
+                match s.has_samples() {
+                    Ok(has) => any |= has,
+                    Err(e) => {
+                        self.errors.note("pose subscriber (has_samples)", &e);
+                        failed = true;
+                    }
+                }
+            }
+            if any {
+                return;
+            }
+            if failed {
+                let since = *failing_since.get_or_insert_with(Instant::now);
+                if since.elapsed() > fatal_wait {
+                    self.summary.fatal = Some(format!(
+                        "iceoryx2 failed on every poll for pose samples for {} s",
+                        fatal_wait.as_secs()
+                    ));
+                    return;
+                }
+            } else {
+                failing_since = None;
+            }
+            // While idle, let late subscribers (a bridge that starts after us) receive the last
+            // feedback, so they can tell the daemon is up.
+            polls += 1;
+            if polls % 500 == 0 {
+                for publisher in &self.ports.feedback {
+                    self.errors.ok(
+                        "feedback publisher (connections)",
+                        publisher.update_connections(),
+                    );
+                }
+            }
+            std::thread::sleep(Duration::from_micros(20));
+        }
+    }
+
+    /// Answers the control requests (reset, pause, resume, keyframe).
+    fn answer_control(&mut self) {
+        while let Some(request) = self
+            .errors
+            .ok("control server (receive)", self.ports.control.receive())
+            .flatten()
+        {
+            let command = request.payload().command;
+            let status = match command {
+                CONTROL_RESET => {
+                    self.sink.event(self.world.tick, event::RESET, None);
+                    self.world = World::from_scene(self.scene);
+                    self.known_bodies = self.world.bodies.len();
+                    self.meshes.reset(&self.world);
+                    self.stability_margin = least_stability_margin(&self.world);
+                    for input in &mut self.inputs {
+                        *input = ToolInputState::default();
+                    }
+                    0
+                }
+                CONTROL_PAUSE => {
+                    self.sink.event(self.world.tick, event::PAUSE, None);
+                    self.paused = true;
+                    0
+                }
+                CONTROL_RESUME => {
+                    self.sink.event(self.world.tick, event::RESUME, None);
+                    self.paused = false;
+                    0
+                }
+                CONTROL_KEYFRAME => {
+                    self.meshes.request_keyframe();
+                    0
+                }
+                _ => -1,
+            };
+            self.errors.ok(
+                "control server (respond)",
+                request.send_copy(ControlResponseV1 {
+                    command,
+                    status,
+                    tick: self.world.tick,
+                }),
+            );
+        }
+    }
+
+    /// Takes the newest pose of every external tool, checked; marks the tools gone stale.
+    fn take_poses(&mut self) {
+        for (k, &tool_index) in self.ports.ipc_tools.iter().enumerate() {
+            let mut newest = None;
+            while let Some(sample) = self
+                .errors
+                .ok("pose subscriber (receive)", self.ports.poses[k].receive())
+                .flatten()
+            {
+                newest = Some(*sample.payload());
+            }
+            self.inputs[k].rejected_this_tick = false;
+            if let Some(pose) = newest {
+                match self.inputs[k].offer(&pose, self.clock, self.dt, &self.options.limits) {
+                    Ok((tool_pose, jaw)) => {
+                        self.world.tools[tool_index].set_target(tool_pose, jaw);
+                        self.echo[k] = (pose.seq, pose.device_time_ns);
+                        self.sink
+                            .input(self.world.tick, tool_index, &pose, monotonic_ns());
+                    }
+                    Err(_) => {
+                        self.sink
+                            .event(self.world.tick, event::INPUT_REJECTED, Some(tool_index))
+                    }
+                }
+            }
+            if self.inputs[k].update_staleness(self.clock, &self.options.limits) {
+                self.world.tools[tool_index].deactivate();
+                self.sink
+                    .event(self.world.tick, event::DISCONNECT, Some(tool_index));
+            }
+        }
+    }
+
+    /// Steps the world unless paused; records added bodies and what the divergence guard did.
+    /// Returns (stepped, the guard acted).
+    fn step(&mut self) -> (bool, bool) {
+        let stepped = !self.paused;
+        if stepped {
+            self.world.step();
+        }
+        // The divergence guard restored a body in this step: flag every tool's feedback, record
+        // which body and why, count it.
+        self.sink.bodies_added(&self.world, &mut self.known_bodies);
+        let diverged = stepped && crate::daemon::guard_acted(&self.world);
+        if diverged {
+            self.summary.guard_ticks += 1;
+            for (b, guard) in self.world.guards.iter().enumerate() {
+                if guard.acted {
+                    self.summary.guard_events += 1;
+                    if let Some(cause) = guard.last_cause {
+                        self.sink.guard(self.world.tick, b, cause);
+                    }
+                }
+            }
+        }
+
+        (stepped, diverged)
+    }
+
+    /// Sends each external tool its feedback (flagged when the guard acted), and records it.
+    fn send_feedback(&mut self, stepped: bool, diverged: bool) {
+        let faulty = self
+            .options
+            .inject_ipc_faults
+            .is_some_and(|f| self.clock >= f.from_tick && self.clock - f.from_tick < f.ticks);
+        for (k, &tool_index) in self.ports.ipc_tools.iter().enumerate() {
+            let mut payload = feedback_payload(
+                &self.world.tools[tool_index],
+                self.world.tick,
+                self.inputs[k].connected,
+                self.inputs[k].rejected_this_tick,
+                self.echo[k],
+            );
+            if diverged {
+                payload.flags |= FEEDBACK_DIVERGED;
+            }
+            if faulty {
+                self.errors
+                    .note("feedback publisher (send)", &"injected fault");
+            } else {
+                self.errors.ok(
+                    "feedback publisher (send)",
+                    self.ports.feedback[k].send_copy(payload),
+                );
+            }
+            if stepped {
+                self.sink.feedback(tool_index, &payload);
+            }
+        }
+    }
+
+    /// At display rate, a mesh keyframe or delta per body. A message iceoryx2 refuses is lost to
+    /// the displays (they resynchronise on the next keyframe, or ask for one); it is still
+    /// recorded, as the daemon produced it.
+    fn send_meshes(&mut self) {
+        let produced = self.meshes.produce(&self.world, |header, bytes| {
+            if let Some(mut sample) = self.errors.ok(
+                "mesh publisher (loan)",
+                self.ports.meshes.loan_slice_uninit(bytes.len()),
+            ) {
+                *sample.user_header_mut() = *header;
+                self.errors.ok(
+                    "mesh publisher (send)",
+                    sample.write_from_slice(bytes).send(),
+                );
+            }
+            self.sink.mesh(header, bytes);
+            Ok::<(), std::convert::Infallible>(())
+        });
+        match produced {
+            Ok(()) => {}
+            Err(never) => match never {},
+        }
+    }
+
+    /// The tick's compute time and wake-up lateness into the statistics (published once per
+    /// window); the tick counted; `summary.fatal` set when IPC failed on too many ticks in a row.
+    fn close_tick(&mut self, compute_us: f64, lateness_us: f64) {
+        self.stats.record(compute_us, lateness_us, self.period_us);
+        self.whole_run
+            .record(compute_us, lateness_us, self.period_us);
+        if compute_us > self.period_us {
+            self.sink
+                .event(self.world.tick, event::SYNCHRONICITY_MISS, None);
+        }
+        self.summary.compute_max_us = self.summary.compute_max_us.max(compute_us);
+        self.summary.compute_mean_us += compute_us;
+        if self.stats.window_ticks() >= 1000 {
+            self.stats.close_window(&mut self.stats_out);
+            self.stats_out.tick = self.world.tick;
+            self.stats_out.rejected_inputs = self.inputs.iter().map(|i| i.rejected).sum();
+            self.stats_out.disconnects = self.inputs.iter().map(|i| i.disconnects).sum();
+            self.stats_out.active_systems = active_system_bits(&self.world);
+            self.stats_out.tools_connected = self
+                .ports
+                .ipc_tools
+                .iter()
+                .zip(&self.inputs)
+                .filter(|(_, i)| i.connected)
+                .fold(0u32, |bits, (&t, _)| bits | (1u32 << t.min(31)));
+            self.stats_out.paused = self.paused as u32;
+            self.stats_out.dropped_records = self.sink.dropped().min(u32::MAX as u64) as u32;
+            self.stats_out.stability_margin = self.stability_margin;
+            self.stats_out.guard_events = self.summary.guard_events;
+            self.stats_out.ipc_errors = self.errors.total;
+            self.errors.ok(
+                "stats publisher (send)",
+                self.ports.stats.send_copy(self.stats_out),
+            );
+            self.sink.stats(&self.stats_out);
+        }
+        self.summary.ticks += 1;
+        self.clock += 1;
+        if self.errors.end_tick() >= self.fatal_streak {
+            self.summary.fatal = Some(format!(
+                "iceoryx2 failed on each of the last {} ticks",
+                self.fatal_streak
+            ));
+        }
+    }
+
+    /// The run's summary.
+    fn finish(mut self) -> ServeSummary {
+        self.summary.compute_mean_us /= self.summary.ticks.max(1) as f64;
+        self.summary.compute_histogram = self.whole_run.compute_histogram().to_vec();
+        self.summary.lateness_histogram = self.whole_run.lateness_histogram().to_vec();
+        let mut overall = StatsV1::default();
+        self.whole_run.close_window(&mut overall);
+        self.summary.compute_p99_us = overall.compute_p99_us;
+        self.summary.synchronicity_misses = self.stats.synchronicity_misses;
+        self.summary.rejected_inputs = self.inputs.iter().map(|i| i.rejected).sum();
+        self.summary.disconnects = self.inputs.iter().map(|i| i.disconnects).sum();
+        self.summary.ipc_errors = self.errors.total;
+        if self.errors.total > 0 {
+            self.summary.first_ipc_error = Some(self.errors.first.clone());
+        }
+        self.summary
+    }
+}
+
+/// The least stability margin of `world`'s bodies.
+fn least_stability_margin(world: &World) -> f64 {
+    world
+        .stability_margins()
+        .iter()
+        .map(|m| m.margin)
+        .fold(f64::INFINITY, f64::min)
 }
