@@ -2426,390 +2426,330 @@ fn inverse_mass_of(bodies: &[Body], r: NodeRef) -> f64 {
     }
 }
 
-/// The contact response between bodies: every vertex that ends the tick within the skin of another
-/// body's face (or crossed it) gets an inelastic normal impulse and a Coulomb friction impulse,
-/// the opposite of each shared by the face's three nodes with their barycentric weights — so the
-/// linear momentum of the pair does not change and the forces on the two bodies are equal and
-/// opposite. Solved by sweeps over the contacts in a fixed order with accumulated impulses (normal
-/// ≥ 0, tangential within μ times the normal; μ = √(μ_a μ_b) from the two bodies' `friction`). A
-/// vertex may close the gap it had at the start of the tick down to half the skin and no more (or
-/// as fast as the nodes a tool holds close it, for a contact [`MAX_AMPLIFICATION`] relaxes); end
-/// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
-/// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
-/// with its displacement's velocity (but a node for which `sub_stepped` is true: its substeps took
-/// last tick's contact forces, which it is given back for its next substeps, and it keeps its
-/// velocity). An edge whose nearest side changed keeps a held contact with
-/// the side it pressed last tick, its normal impulse capped at [`HOLD_SHARE`] of last tick's. A
-/// node on an obstacle (within the skin of it) may not be
-/// pushed into it: the obstacle is a one-sided row of the same solve ([`GroundRow`]), and its
-/// impulses are added to `reactions`. Run before the collision net ([`resolve_body_collisions`]),
-/// which still guarantees no pass-through.
-pub fn respond_to_body_contacts(
-    bodies: &mut [Body],
-    group: &[usize],
-    (obstacles, reactions): (&[Obstacle], &mut [Vec3]),
+/// Adds contact `c` to the list, or counts it dropped when the list is full.
+fn push_contact(contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c: Contact) {
+    if contacts.len() == contacts.capacity() {
+        counters.contacts_dropped += 1;
+    } else {
+        contacts.push(c);
+    }
+}
+
+/// The vertex–face contacts of body `i`'s vertices named in `vertices` (a run of the pair's
+/// candidate list, each vertex with the faces of body `j` it may touch): each vertex's nearest face
+/// with a contact, tested nearest first (one it started the tick behind taken only if no other
+/// gives a contact), and, for a vertex pressed onto body `j`, a contact with each other face it
+/// ended crossed over (a fold pressed flat, [`crossed_too`]).
+fn vertex_face_contacts(
+    bodies: &[Body],
+    (i, j): (usize, usize),
+    vertices: (u32, u32),
     scratch: &mut BodyContactScratch,
-    sub_stepped: impl Fn(usize, usize) -> bool,
-    dt: f64,
-) -> BodyContactCounters {
-    let mut counters = BodyContactCounters::default();
-    scratch.moved.clear();
-    scratch.moved.resize(bodies.len(), false);
-    // (Last tick's were carried into this tick's substeps.)
-    scratch.carried.clear();
-    scratch.forces.clear();
-    scratch.forces.resize(bodies.len(), Vec3::zeros());
-    scratch.work.clear();
-    scratch.work.resize(bodies.len(), 0.0);
-    scratch.prepared = Prepared::NoneNear;
-    counters.contacts_dropped += std::mem::take(&mut scratch.remembered_dropped);
-    if bodies.len() < 2 {
-        scratch.forget();
-        return counters;
-    }
-    scratch.contacts.clear();
-    // The bounds with no margin (kept for the net), then grown by the skin: the bodies near within
-    // the skin are those whose grown bounds meet.
-    scratch.find_bounds(bodies, group);
-    scratch.tight_bounds.clear();
-    scratch.tight_bounds.extend_from_slice(&scratch.bounds);
-    for (k, aabb) in scratch.bounds.iter_mut().enumerate() {
-        aabb.inflate(CONTACT_SKIN);
-        scratch.near[k] = false;
-    }
-    if !mark_near(group, &scratch.bounds, &mut scratch.near) {
-        scratch.forget();
-        return counters;
-    }
-    // Each vertex of a body near another once against that body's faces, each edge once against
-    // its edges: the candidates are the other body's triangles whose swept boxes meet the vertex's
-    // (edge's) swept box grown by the skin — a vertex (edge) within the skin of a face (edge) at
-    // the end of the tick has its swept box within the skin of that face's (edge's) box, and a
-    // vertex that crossed the inside of a face over the tick has a swept box meeting the face's.
-    // (A vertex ending deeper than the skin behind a face it did not cross inside is left to the
-    // collision net, which stops it: no pass-through either way.) The pairs that may meet are
-    // listed from the hierarchies only when a body moved out of the slack of its last listing
-    // ([`CandidateCache`]), and each listed pair is checked with this tick's boxes: the same
-    // candidates as a query of the hierarchies every tick, and the same contacts.
-    scratch.cache.list(
-        bodies,
-        group,
-        (&scratch.bounds, &scratch.near),
-        ListCall::Response,
-        &mut scratch.bvhs,
-        (&mut scratch.near_triangles, &mut scratch.found),
-        &mut counters,
-    );
-    scratch.now.begin(bodies);
-    scratch.prepared = Prepared::Listed;
-    let simd = crate::dynamics::kernel::simd_available();
-    let push = |contacts: &mut Vec<Contact>, counters: &mut BodyContactCounters, c| {
-        if contacts.len() == contacts.capacity() {
-            counters.contacts_dropped += 1;
-        } else {
-            contacts.push(c);
+    counters: &mut BodyContactCounters,
+    simd: bool,
+) {
+    let entries = &scratch.cache.entries[scratch.cache.current];
+    let sj = &bodies[j].surface;
+    let now = &mut scratch.now;
+    let mut k = vertices.0 as usize;
+    while k < vertices.1 as usize {
+        let v = entries[k].feature[0];
+        let mut swept = swept_box(&bodies[i], &[v as usize]);
+        swept.inflate(CONTACT_SKIN);
+        let vertex = NodeRef {
+            body: i,
+            node: v as usize,
+        };
+        // The faces the vertex may touch with its distance to each, then the whole test
+        // on them nearest first (ties by the face's nodes) until one gives a contact: the
+        // contact that testing them all and keeping the nearest would keep.
+        let faces = &mut scratch.faces_near;
+        faces.clear();
+        let boxed = &mut scratch.faces_boxed;
+        boxed.clear();
+        while k < vertices.1 as usize && entries[k].feature[0] == v {
+            let t = entries[k].other[0];
+            k += 1;
+            if !now.of(j, t as usize, &bodies[j]).overlaps(&swept) {
+                continue;
+            }
+            counters.candidate_pairs += 1;
+            // Room for every triangle of the body (see `new`), each listed once.
+            if boxed.len() < boxed.capacity() {
+                boxed.push(t);
+            } else {
+                counters.overflows += 1;
+            }
         }
-    };
-    let slots = scratch.cache.slots;
-    for i in 0..bodies.len() {
-        for j in 0..bodies.len() {
-            if i == j
-                || group.get(i).is_some_and(|g| group.get(j) == Some(g))
-                || !scratch.bounds[i].overlaps(&scratch.bounds[j])
-            {
-                continue;
+        let mut keep = |faces: &mut Room<(f64, u32)>, distance: Option<f64>, t: u32| {
+            if let Some(distance) = distance {
+                if faces.len() < faces.capacity() {
+                    faces.push((distance, t));
+                } else {
+                    counters.overflows += 1;
+                }
             }
-            let pair = i * slots + j;
-            if scratch.cache.listed[pair] == NOT_LISTED {
-                continue;
-            }
-            let [vertices, edges] = scratch.cache.ranges[pair];
-            let entries = &scratch.cache.entries[scratch.cache.current];
-            let sj = &bodies[j].surface;
-            let now = &mut scratch.now;
-            let mut k = vertices.0 as usize;
-            while k < vertices.1 as usize {
-                let v = entries[k].feature[0];
-                let mut swept = swept_box(&bodies[i], &[v as usize]);
-                swept.inflate(CONTACT_SKIN);
-                let vertex = NodeRef {
-                    body: i,
-                    node: v as usize,
-                };
-                // The faces the vertex may touch with its distance to each, then the whole test
-                // on them nearest first (ties by the face's nodes) until one gives a contact: the
-                // contact that testing them all and keeping the nearest would keep.
-                let faces = &mut scratch.faces_near;
-                faces.clear();
-                let boxed = &mut scratch.faces_boxed;
-                boxed.clear();
-                while k < vertices.1 as usize && entries[k].feature[0] == v {
-                    let t = entries[k].other[0];
-                    k += 1;
-                    if !now.of(j, t as usize, &bodies[j]).overlaps(&swept) {
-                        continue;
+        };
+        // Four faces at a time (the scalar code's operations, so its distances); a last
+        // batch of fewer repeats its last face in the other lanes, whose answers are not
+        // read.
+        let mut m = 0;
+        #[cfg(target_arch = "x86_64")]
+        if simd {
+            let pe = end_of(bodies, vertex);
+            let positions = &sj.next_position_in_world;
+            while m < boxed.len() {
+                let lanes = (boxed.len() - m).min(LANES_OF_FACES);
+                // (Plain loops: nested `array::from_fn` compiled to a call per row
+                // and its copy through the stack.)
+                let mut corners = [[0u32; LANES_OF_FACES]; 3];
+                for l in 0..LANES_OF_FACES {
+                    let triangle = sj.triangles[boxed[m + l.min(lanes - 1)] as usize];
+                    for c in 0..3 {
+                        corners[c][l] = triangle[c];
                     }
-                    counters.candidate_pairs += 1;
-                    // Room for every triangle of the body (see `new`), each listed once.
-                    if boxed.len() < boxed.capacity() {
-                        boxed.push(t);
+                }
+                // SAFETY: the machine has AVX (checked when `simd` was set); the corners
+                // are nodes of body j (its triangles at its current topology).
+                let (distances, kept, scalar) =
+                    unsafe { wide::vertex_faces(&pe, positions, corners) };
+                for (l, &distance) in distances.iter().enumerate().take(lanes) {
+                    let t = boxed[m + l];
+                    let distance = if scalar & (1 << l) != 0 {
+                        vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize))
                     } else {
-                        counters.overflows += 1;
-                    }
-                }
-                let mut keep = |faces: &mut Room<(f64, u32)>, distance: Option<f64>, t: u32| {
-                    if let Some(distance) = distance {
-                        if faces.len() < faces.capacity() {
-                            faces.push((distance, t));
-                        } else {
-                            counters.overflows += 1;
-                        }
-                    }
-                };
-                // Four faces at a time (the scalar code's operations, so its distances); a last
-                // batch of fewer repeats its last face in the other lanes, whose answers are not
-                // read.
-                let mut m = 0;
-                #[cfg(target_arch = "x86_64")]
-                if simd {
-                    let pe = end_of(bodies, vertex);
-                    let positions = &sj.next_position_in_world;
-                    while m < boxed.len() {
-                        let lanes = (boxed.len() - m).min(LANES_OF_FACES);
-                        // (Plain loops: nested `array::from_fn` compiled to a call per row
-                        // and its copy through the stack.)
-                        let mut corners = [[0u32; LANES_OF_FACES]; 3];
-                        for l in 0..LANES_OF_FACES {
-                            let triangle = sj.triangles[boxed[m + l.min(lanes - 1)] as usize];
-                            for c in 0..3 {
-                                corners[c][l] = triangle[c];
-                            }
-                        }
-                        // SAFETY: the machine has AVX (checked when `simd` was set); the corners
-                        // are nodes of body j (its triangles at its current topology).
-                        let (distances, kept, scalar) =
-                            unsafe { wide::vertex_faces(&pe, positions, corners) };
-                        for (l, &distance) in distances.iter().enumerate().take(lanes) {
-                            let t = boxed[m + l];
-                            let distance = if scalar & (1 << l) != 0 {
-                                vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize))
-                            } else {
-                                (kept & (1 << l) != 0).then_some(distance)
-                            };
-                            keep(faces, distance, t);
-                        }
-                        m += lanes;
-                    }
-                }
-                for &t in &boxed[m..] {
-                    let distance = vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize));
+                        (kept & (1 << l) != 0).then_some(distance)
+                    };
                     keep(faces, distance, t);
                 }
-                let mut first: Option<Contact> = None;
-                let mut behind: Option<Contact> = None;
-                while !faces.is_empty() {
-                    let mut nearest = 0;
-                    for m in 1..faces.len() {
-                        let (d, t) = faces[m];
-                        let (dn, tn) = faces[nearest];
-                        if d.total_cmp(&dn)
-                            .then_with(|| {
-                                face_of(sj, j, t as usize).cmp(&face_of(sj, j, tn as usize))
-                            })
-                            .is_lt()
-                        {
-                            nearest = m;
-                        }
-                    }
-                    let (_, t) = faces.swap_remove(nearest);
-                    if let Some(c) = vertex_face_contact(bodies, vertex, face_of(sj, j, t as usize))
-                    {
-                        // The nearest face with a contact is passed over for the next one when
-                        // the vertex started the tick behind it (on the inside of its plane), and
-                        // taken only if no other gives a contact. Where a soft organ is pressed
-                        // flat its two sheets lie closer than the skin: a vertex resting on the
-                        // upper sheet, pushed a little into it over the tick, ends nearer the
-                        // lower sheet, behind which it also is. Its contact with that sheet pushed it out
-                        // through the upper one, and the collision net stopped it at its start
-                        // every tick (19 a tick in two default organs stacked), so that the
-                        // organs never came to rest. (Passing over every face the vertex started
-                        // behind, for the nearest it started in front of, left single ticks of
-                        // 1.6e-5 J in that pair; passing over the nearest only, 8.5e-6 J.)
-                        if c.gap < 0.0 && behind.is_none() {
-                            behind = Some(c);
-                            continue;
-                        }
-                        first = Some(c);
-                        break;
-                    }
-                }
-                if first.is_none() {
-                    first = behind;
-                }
-                if let Some(c) = first {
-                    push(&mut scratch.contacts, &mut counters, c);
-                }
-                // A vertex pressed onto the other body that also ended crossed over the inside of
-                // other faces of it (a fold of a surface pressed flat): a contact with each.
-                if let Some(first) = first.filter(|c| c.gap < PRESSED_GAP) {
-                    let mut extra = 0;
-                    for &(distance, t) in faces.iter() {
-                        if extra == MORE_FACES {
-                            break;
-                        }
-                        if distance >= REST_DISTANCE {
-                            continue;
-                        }
-                        let face = face_of(sj, j, t as usize);
-                        if let Some(c) = crossed_too(bodies, vertex, face, &first.normal) {
-                            push(&mut scratch.contacts, &mut counters, c);
-                            extra += 1;
-                        }
-                    }
+                m += lanes;
+            }
+        }
+        for &t in &boxed[m..] {
+            let distance = vertex_face_distance(bodies, vertex, face_of(sj, j, t as usize));
+            keep(faces, distance, t);
+        }
+        let mut first: Option<Contact> = None;
+        let mut behind: Option<Contact> = None;
+        while !faces.is_empty() {
+            let mut nearest = 0;
+            for m in 1..faces.len() {
+                let (d, t) = faces[m];
+                let (dn, tn) = faces[nearest];
+                if d.total_cmp(&dn)
+                    .then_with(|| face_of(sj, j, t as usize).cmp(&face_of(sj, j, tn as usize)))
+                    .is_lt()
+                {
+                    nearest = m;
                 }
             }
-            // Each edge against the sides its list names: a side that could be in contact (within
-            // the skin at the end of the tick) has its ends' box within the skin of the edge's, so
-            // within the boxes the list was made from; `edge_edge_contact` turns the others down
-            // by their ends' boxes first.
-            let mut k = edges.0 as usize;
-            while k < edges.1 as usize {
-                let feature = entries[k].feature;
-                let (ea, eb) = (feature[0] as usize, feature[1] as usize);
-                let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
-                let edge = EdgeAtEnd::of(bodies, a);
-                let mut best: Option<Contact> = None;
-                let first = k;
-                while k < edges.1 as usize && entries[k].feature == feature {
-                    k += 1;
+            let (_, t) = faces.swap_remove(nearest);
+            if let Some(c) = vertex_face_contact(bodies, vertex, face_of(sj, j, t as usize)) {
+                // The nearest face with a contact is passed over for the next one when
+                // the vertex started the tick behind it (on the inside of its plane), and
+                // taken only if no other gives a contact. Where a soft organ is pressed
+                // flat its two sheets lie closer than the skin: a vertex resting on the
+                // upper sheet, pushed a little into it over the tick, ends nearer the
+                // lower sheet, behind which it also is. Its contact with that sheet pushed it out
+                // through the upper one, and the collision net stopped it at its start
+                // every tick (19 a tick in two default organs stacked), so that the
+                // organs never came to rest. (Passing over every face the vertex started
+                // behind, for the nearest it started in front of, left single ticks of
+                // 1.6e-5 J in that pair; passing over the nearest only, 8.5e-6 J.)
+                if c.gap < 0.0 && behind.is_none() {
+                    behind = Some(c);
+                    continue;
                 }
-                let sides = &entries[first..k];
-                let positions = &sj.next_position_in_world;
-                // Four sides at a time through the first checks (the scalar code's operations,
-                // so the same answers): only the sides they let through take the whole test.
-                let mut m = 0;
-                #[cfg(target_arch = "x86_64")]
-                if simd && edge.length2 > f64::MIN_POSITIVE {
-                    while m < sides.len() {
-                        // The last batch may hold fewer sides: its other lanes repeat the last
-                        // side and their answers are not read.
-                        let lanes = (sides.len() - m).min(LANES_OF_SIDES);
-                        let mut ends = [[0u32; LANES_OF_SIDES]; 2];
-                        for l in 0..LANES_OF_SIDES {
-                            let side = sides[m + l.min(lanes - 1)].other;
-                            ends[0][l] = side[0];
-                            ends[1][l] = side[1];
-                        }
-                        // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
-                        // are nodes of body j (listed from its triangles at its current topology).
-                        let answer =
-                            unsafe { wide::edge_sides(&edge, positions, ends[0], ends[1]) };
-                        let (within, through, unordered) =
-                            (answer.within, answer.through, answer.unordered);
-                        for l in 0..lanes {
-                            if unordered & (1 << l) != 0 {
-                                // A coordinate that is not a number: the scalar code's checks.
-                                let b = sides[m + l].other.map(|v| NodeRef {
-                                    body: j,
-                                    node: v as usize,
-                                });
-                                let ends = (positions[b[0].node], positions[b[1].node]);
-                                if !edge.apart(&ends.0, &ends.1) {
-                                    counters.candidate_pairs += 1;
-                                    if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
-                                        keep_nearer(&mut best, c);
-                                    }
-                                }
-                                continue;
-                            }
-                            if within & (1 << l) == 0 {
-                                continue;
-                            }
-                            counters.candidate_pairs += 1;
-                            if through & (1 << l) == 0 {
-                                continue;
-                            }
-                            let side = sides[m + l].other;
-                            let b = side.map(|v| NodeRef {
-                                body: j,
-                                node: v as usize,
-                            });
-                            let ends = (positions[b[0].node], positions[b[1].node]);
-                            // The nearest points as the scalar code finds them (its operations,
-                            // so its bits), from the lane's parameters and distance.
-                            let (s, t) = (answer.s[l], answer.t[l]);
-                            let near = (
-                                s,
-                                t,
-                                edge.a0 + (edge.a1 - edge.a0) * s,
-                                ends.0 + (ends.1 - ends.0) * t,
-                                answer.distance[l],
-                            );
-                            if let Some(c) = edge_edge_contact_at(bodies, &edge, b, ends, near) {
-                                keep_nearer(&mut best, c);
-                            }
-                        }
-                        m += lanes;
-                    }
+                first = Some(c);
+                break;
+            }
+        }
+        if first.is_none() {
+            first = behind;
+        }
+        if let Some(c) = first {
+            push_contact(&mut scratch.contacts, counters, c);
+        }
+        // A vertex pressed onto the other body that also ended crossed over the inside of
+        // other faces of it (a fold of a surface pressed flat): a contact with each.
+        if let Some(first) = first.filter(|c| c.gap < PRESSED_GAP) {
+            let mut extra = 0;
+            for &(distance, t) in faces.iter() {
+                if extra == MORE_FACES {
+                    break;
                 }
-                for candidate in &sides[m..] {
-                    let b = candidate.other.map(|v| NodeRef {
-                        body: j,
-                        node: v as usize,
-                    });
-                    let ends = (end_of(bodies, b[0]), end_of(bodies, b[1]));
-                    if edge.apart(&ends.0, &ends.1) {
-                        continue;
-                    }
-                    counters.candidate_pairs += 1;
-                    if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
-                        keep_nearer(&mut best, c);
-                    }
+                if distance >= REST_DISTANCE {
+                    continue;
                 }
-                // Sides the edge started within the skin of and crossed over the tick
-                // ([`edge_edge_crossed_from_near`]), looked for where the collision net answered
-                // a collision of the edge's nodes in its last run, the tick before (it clears its
-                // marks as it starts; the body's topology the same since, so that they name the
-                // same nodes): the response takes over what the net would stop again. (Such a
-                // contact ends beyond the skin, `best` within it: never the same side.)
-                let mut crossed: Option<Contact> = None;
-                let net_answered = |r: NodeRef| {
-                    same_topology(&scratch.warm_versions, bodies, r.body)
-                        && scratch
-                            .answered
-                            .get(r.body)
-                            .and_then(|marks| marks.get(r.node))
-                            .is_some_and(|&mark| mark > 0)
-                };
-                if net_answered(a[0]) || net_answered(a[1]) {
-                    for candidate in sides {
-                        let b = candidate.other.map(|v| NodeRef {
+                let face = face_of(sj, j, t as usize);
+                if let Some(c) = crossed_too(bodies, vertex, face, &first.normal) {
+                    push_contact(&mut scratch.contacts, counters, c);
+                    extra += 1;
+                }
+            }
+        }
+    }
+}
+
+/// The edge–edge contacts of body `i`'s edges named in `edges` (a run of the pair's candidate
+/// list, each edge with the sides of body `j` it may touch): each edge's nearest side within the
+/// skin, and a side it crossed from within the skin where the net answered its nodes last tick.
+fn edge_edge_contacts(
+    bodies: &[Body],
+    (i, j): (usize, usize),
+    edges: (u32, u32),
+    scratch: &mut BodyContactScratch,
+    counters: &mut BodyContactCounters,
+    simd: bool,
+) {
+    let entries = &scratch.cache.entries[scratch.cache.current];
+    let sj = &bodies[j].surface;
+    // Each edge against the sides its list names: a side that could be in contact (within
+    // the skin at the end of the tick) has its ends' box within the skin of the edge's, so
+    // within the boxes the list was made from; `edge_edge_contact` turns the others down
+    // by their ends' boxes first.
+    let mut k = edges.0 as usize;
+    while k < edges.1 as usize {
+        let feature = entries[k].feature;
+        let (ea, eb) = (feature[0] as usize, feature[1] as usize);
+        let a = sorted([NodeRef { body: i, node: ea }, NodeRef { body: i, node: eb }]);
+        let edge = EdgeAtEnd::of(bodies, a);
+        let mut best: Option<Contact> = None;
+        let first = k;
+        while k < edges.1 as usize && entries[k].feature == feature {
+            k += 1;
+        }
+        let sides = &entries[first..k];
+        let positions = &sj.next_position_in_world;
+        // Four sides at a time through the first checks (the scalar code's operations,
+        // so the same answers): only the sides they let through take the whole test.
+        let mut m = 0;
+        #[cfg(target_arch = "x86_64")]
+        if simd && edge.length2 > f64::MIN_POSITIVE {
+            while m < sides.len() {
+                // The last batch may hold fewer sides: its other lanes repeat the last
+                // side and their answers are not read.
+                let lanes = (sides.len() - m).min(LANES_OF_SIDES);
+                let mut ends = [[0u32; LANES_OF_SIDES]; 2];
+                for l in 0..LANES_OF_SIDES {
+                    let side = sides[m + l.min(lanes - 1)].other;
+                    ends[0][l] = side[0];
+                    ends[1][l] = side[1];
+                }
+                // SAFETY: the machine has AVX (checked when `simd` was set); the nodes
+                // are nodes of body j (listed from its triangles at its current topology).
+                let answer = unsafe { wide::edge_sides(&edge, positions, ends[0], ends[1]) };
+                let (within, through, unordered) =
+                    (answer.within, answer.through, answer.unordered);
+                for l in 0..lanes {
+                    if unordered & (1 << l) != 0 {
+                        // A coordinate that is not a number: the scalar code's checks.
+                        let b = sides[m + l].other.map(|v| NodeRef {
                             body: j,
                             node: v as usize,
                         });
-                        if let Some(c) = edge_edge_crossed_from_near(bodies, a, b) {
-                            keep_nearer(&mut crossed, c);
+                        let ends = (positions[b[0].node], positions[b[1].node]);
+                        if !edge.apart(&ends.0, &ends.1) {
+                            counters.candidate_pairs += 1;
+                            if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                                keep_nearer(&mut best, c);
+                            }
                         }
+                        continue;
+                    }
+                    if within & (1 << l) == 0 {
+                        continue;
+                    }
+                    counters.candidate_pairs += 1;
+                    if through & (1 << l) == 0 {
+                        continue;
+                    }
+                    let side = sides[m + l].other;
+                    let b = side.map(|v| NodeRef {
+                        body: j,
+                        node: v as usize,
+                    });
+                    let ends = (positions[b[0].node], positions[b[1].node]);
+                    // The nearest points as the scalar code finds them (its operations,
+                    // so its bits), from the lane's parameters and distance.
+                    let (s, t) = (answer.s[l], answer.t[l]);
+                    let near = (
+                        s,
+                        t,
+                        edge.a0 + (edge.a1 - edge.a0) * s,
+                        ends.0 + (ends.1 - ends.0) * t,
+                        answer.distance[l],
+                    );
+                    if let Some(c) = edge_edge_contact_at(bodies, &edge, b, ends, near) {
+                        keep_nearer(&mut best, c);
                     }
                 }
-                for c in [best, crossed].into_iter().flatten() {
-                    push(&mut scratch.contacts, &mut counters, c);
+                m += lanes;
+            }
+        }
+        for candidate in &sides[m..] {
+            let b = candidate.other.map(|v| NodeRef {
+                body: j,
+                node: v as usize,
+            });
+            let ends = (end_of(bodies, b[0]), end_of(bodies, b[1]));
+            if edge.apart(&ends.0, &ends.1) {
+                continue;
+            }
+            counters.candidate_pairs += 1;
+            if let Some(c) = edge_edge_contact(bodies, &edge, b, ends) {
+                keep_nearer(&mut best, c);
+            }
+        }
+        // Sides the edge started within the skin of and crossed over the tick
+        // ([`edge_edge_crossed_from_near`]), looked for where the collision net answered
+        // a collision of the edge's nodes in its last run, the tick before (it clears its
+        // marks as it starts; the body's topology the same since, so that they name the
+        // same nodes): the response takes over what the net would stop again. (Such a
+        // contact ends beyond the skin, `best` within it: never the same side.)
+        let mut crossed: Option<Contact> = None;
+        let net_answered = |r: NodeRef| {
+            same_topology(&scratch.warm_versions, bodies, r.body)
+                && scratch
+                    .answered
+                    .get(r.body)
+                    .and_then(|marks| marks.get(r.node))
+                    .is_some_and(|&mark| mark > 0)
+        };
+        if net_answered(a[0]) || net_answered(a[1]) {
+            for candidate in sides {
+                let b = candidate.other.map(|v| NodeRef {
+                    body: j,
+                    node: v as usize,
+                });
+                if let Some(c) = edge_edge_crossed_from_near(bodies, a, b) {
+                    keep_nearer(&mut crossed, c);
                 }
             }
         }
+        for c in [best, crossed].into_iter().flatten() {
+            push_contact(&mut scratch.contacts, counters, c);
+        }
     }
-    // Held contacts: an edge whose contact pressed a side last tick, and whose nearest side is
-    // another now, keeps a contact with that side too while it is within the skin, its normal
-    // impulse capped at a share of last tick's (and so on, tick after tick, while that side is not
-    // the nearest: the cap halves each tick). Each edge keeps one contact, with its nearest side
-    // (and one with a side it crossed from within the skin, `edge_edge_crossed_from_near`);
-    // edges are tested from one body only, so a node of the other body whose sides an edge of this
-    // one held up lost its support at once when the edge's nearest side changed, fell 0.1 mm under
-    // its own springs within the tick and was caught at the next (single ticks of 1.7e-5 J in a
-    // resting organ). Held at full strength, or as hard contacts, such sides over-constrain a
-    // squashed soft organ; a cap that decays hands the support over. Last tick's contacts come in
-    // the order of this tick's lists (see `warm_start`): the two runs of last tick's list (the
-    // nearest contacts, then the held ones) are each walked alongside this tick's contacts.
+}
+
+/// Held contacts: an edge whose contact pressed a side last tick, and whose nearest side is
+/// another now, keeps a contact with that side too while it is within the skin, its normal
+/// impulse capped at a share of last tick's (and so on, tick after tick, while that side is not
+/// the nearest: the cap halves each tick). Each edge keeps one contact, with its nearest side
+/// (and one with a side it crossed from within the skin, `edge_edge_crossed_from_near`);
+/// edges are tested from one body only, so a node of the other body whose sides an edge of this
+/// one held up lost its support at once when the edge's nearest side changed, fell 0.1 mm under
+/// its own springs within the tick and was caught at the next (single ticks of 1.7e-5 J in a
+/// resting organ). Held at full strength, or as hard contacts, such sides over-constrain a
+/// squashed soft organ; a cap that decays hands the support over. Last tick's contacts come in
+/// the order of this tick's lists (see `warm_start`): the two runs of last tick's list (the
+/// nearest contacts, then the held ones) are each walked alongside this tick's contacts.
+fn held_contacts(
+    bodies: &[Body],
+    scratch: &mut BodyContactScratch,
+    counters: &mut BodyContactCounters,
+) {
     let held_from = scratch.contacts.len();
     let unchanged = |k: usize| same_topology(&scratch.warm_versions, bodies, k);
     for part in [
@@ -2849,22 +2789,28 @@ pub fn respond_to_body_contacts(
             }
             if let Some(mut c) = edge_edge_contact(bodies, &edge, b, ends) {
                 c.cap = HOLD_SHARE * w.normal_impulse;
-                push(&mut scratch.contacts, &mut counters, c);
+                push_contact(&mut scratch.contacts, counters, c);
             }
         }
     }
-    // Remembered contacts: a contact for each pair the collision net answered last tick, or whose
-    // remembered contact pressed last tick, that the contacts above do not hold already (else the
-    // net stops the same pair again: of a soft ball's landing on an organ, 93 % of the net's
-    // answers were the pair it answered the tick before, 7 765 answers over the landing against 2
-    // now). A pair the net answered may take any impulse; one whose remembered contact pressed
-    // last tick at most [`HOLD_SHARE`] of what it took then (its support handed over, as a held
-    // contact's), and one whose remembered contact took nothing, which the net answered again,
-    // none: the contact only parts its positions. (With no cap the pressed pairs held too much:
-    // 43 net collisions a tick where a 5 kg organ crushes a 0.06 kg one, single ticks of 1.6e-5 J
-    // in a stack at rest; those the net answered again taken at full strength, 62 a tick.) In the
-    // order of the pairs' keys.
-    let remembered_from = scratch.contacts.len();
+}
+
+/// Remembered contacts: a contact for each pair the collision net answered last tick, or whose
+/// remembered contact pressed last tick, that the contacts above do not hold already (else the
+/// net stops the same pair again: of a soft ball's landing on an organ, 93 % of the net's
+/// answers were the pair it answered the tick before, 7 765 answers over the landing against 2
+/// now). A pair the net answered may take any impulse; one whose remembered contact pressed
+/// last tick at most [`HOLD_SHARE`] of what it took then (its support handed over, as a held
+/// contact's), and one whose remembered contact took nothing, which the net answered again,
+/// none: the contact only parts its positions. (With no cap the pressed pairs held too much:
+/// 43 net collisions a tick where a 5 kg organ crushes a 0.06 kg one, single ticks of 1.6e-5 J
+/// in a stack at rest; those the net answered again taken at full strength, 62 a tick.) In the
+/// order of the pairs' keys.
+fn remembered_contacts(
+    bodies: &[Body],
+    scratch: &mut BodyContactScratch,
+    counters: &mut BodyContactCounters,
+) {
     let remembered = &mut scratch.remembered;
     remembered.sort_unstable_by(|x, y| {
         x.order(y)
@@ -2908,17 +2854,30 @@ pub fn respond_to_body_contacts(
         };
         if let Some(mut c) = contact {
             c.cap = HOLD_SHARE * r.last_impulse;
-            push(&mut scratch.contacts, &mut counters, c);
+            push_contact(&mut scratch.contacts, counters, c);
         }
     }
-    // One contact per vertex (or edge) and other body, the nearest (kept above; a vertex pressed into
-    // a fold takes up to two more, see `crossed_too`, an edge one more with a side it crossed from
-    // within the skin, `edge_edge_crossed_from_near`), in a fixed order:
-    // the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
-    // (edge) of a body is named in one run of its pair's list (through the one triangle that owns
-    // it), and the lists keep the order of a traversal of the hierarchies whose descent does not
-    // depend on the boxes (lists made at another tick, or every tick, name a subsequence of the
-    // same order): the same contacts in the same order, whenever the lists were made.
+}
+
+/// One contact per vertex (or edge) and other body, the nearest (kept above; a vertex pressed into
+/// a fold takes up to two more, see `crossed_too`, an edge one more with a side it crossed from
+/// within the skin, `edge_edge_crossed_from_near`), in a fixed order:
+/// the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
+/// (edge) of a body is named in one run of its pair's list (through the one triangle that owns
+/// it), and the lists keep the order of a traversal of the hierarchies whose descent does not
+/// depend on the boxes (lists made at another tick, or every tick, name a subsequence of the
+/// same order): the same contacts in the same order, whenever the lists were made.
+///
+/// Each contact takes its pair's friction, its nodes (in the solver's list) and its compliance; a
+/// contact whose nodes the list has no room for is dropped (counted). Returns where the held and
+/// the remembered contacts now start (`held_from` and `remembered_from` before).
+fn keep_contacts(
+    bodies: &[Body],
+    scratch: &mut BodyContactScratch,
+    counters: &mut BodyContactCounters,
+    (held_from, remembered_from): (usize, usize),
+    dt: f64,
+) -> (usize, usize) {
     scratch.contact_nodes.clear();
     let solver_nodes = &mut scratch.solver_nodes;
     let mut kept = 0;
@@ -2998,39 +2957,21 @@ pub fn respond_to_body_contacts(
         kept += 1;
     }
     scratch.contacts.truncate(kept);
-    let held_kept = held_kept.min(kept);
-    let remembered_kept = remembered_kept.min(kept);
-    counters.contacts = scratch.contacts.len() as u32;
-    // The obstacles the contacts' nodes rest on, which the impulses may not push them into.
-    counters.overflows += ground_rows(
-        solver_nodes,
-        obstacles,
-        (&scratch.ground_warm, |k| {
-            same_topology(&scratch.warm_versions, bodies, k)
-        }),
-        dt,
-    );
-    // Warm start: a contact that was there last tick, between the same nodes of bodies whose
-    // topology did not change, starts from last tick's impulses (its tangential one on this
-    // tick's tangent plane, within the cone): a resting stack's solve then starts where the last
-    // one ended instead of from nothing, so a few sweeps carry a heavy organ's weight through a
-    // light one's nodes (without it, its unfinished solves leave gaps below the rest distance
-    // each tick, and the parting, which knows no friction, lets the heavy organ creep off).
-    warm_start(
-        (&mut scratch.contacts, &mut scratch.contact_nodes),
-        (&scratch.warm, &scratch.warm_versions),
-        bodies,
-        solver_nodes,
-        dt,
-    );
-    // The displacements over the tick (where the nodes end: no approach past the rest distance,
-    // no slip where friction holds; the impulses change the end velocities alike). Each impulse
-    // changes the pair's momentum by equal and opposite amounts.
-    solve(
-        solver_nodes,
-        (&mut scratch.contacts, &mut scratch.contact_nodes),
-        dt,
-    );
+    (held_kept.min(kept), remembered_kept.min(kept))
+}
+
+/// What the solved impulses do: each contact's force and work on its bodies; the pushed nodes'
+/// velocities; positions closer than the rest distance parted; no node parted into an obstacle,
+/// whose rows' impulses are its reactions; the bounds and largest motions the net starts from;
+/// the obstacle rows' impulses for the next warm start; the sub-stepped nodes' forces for their
+/// next substeps; the bodies moved.
+fn apply_impulses(
+    scratch: &mut BodyContactScratch,
+    reactions: &mut [Vec3],
+    sub_stepped: impl Fn(usize, usize) -> bool,
+    dt: f64,
+) {
+    let solver_nodes = &mut scratch.solver_nodes;
     // Each contact's force on the nodes of each side over the tick (its accumulated impulse with
     // their weights) and the work its impulses did, on their bodies.
     for (c, nodes) in scratch.contacts.iter().zip(&scratch.contact_nodes) {
@@ -3134,7 +3075,15 @@ pub fn respond_to_body_contacts(
             *moved = true;
         }
     }
-    solver_nodes.write_back(bodies);
+}
+
+/// This tick's contacts kept for the next tick: the impulses for its warm start, the held and
+/// remembered runs, the remembered pairs, the topology they were made on.
+fn remember_for_next_tick(
+    bodies: &[Body],
+    scratch: &mut BodyContactScratch,
+    (held_kept, remembered_kept): (usize, usize),
+) {
     // This tick's impulses for the next tick's warm start, in the contacts' order.
     scratch.warm.clear();
     for c in scratch.contacts.iter() {
@@ -3160,6 +3109,149 @@ pub fn respond_to_body_contacts(
     scratch
         .warm_versions
         .extend(bodies.iter().map(|b| b.topology_version));
+}
+
+/// The contact response between bodies: every vertex that ends the tick within the skin of another
+/// body's face (or crossed it) gets an inelastic normal impulse and a Coulomb friction impulse,
+/// the opposite of each shared by the face's three nodes with their barycentric weights — so the
+/// linear momentum of the pair does not change and the forces on the two bodies are equal and
+/// opposite. Solved by sweeps over the contacts in a fixed order with accumulated impulses (normal
+/// ≥ 0, tangential within μ times the normal; μ = √(μ_a μ_b) from the two bodies' `friction`). A
+/// vertex may close the gap it had at the start of the tick down to half the skin and no more (or
+/// as fast as the nodes a tool holds close it, for a contact [`MAX_AMPLIFICATION`] relaxes); end
+/// positions closer than that are parted by a fifth of the shortfall (positions only). The impulses
+/// act on the displacements over the tick and the end velocities alike, and a node they pushed ends
+/// with its displacement's velocity (but a node for which `sub_stepped` is true: its substeps took
+/// last tick's contact forces, which it is given back for its next substeps, and it keeps its
+/// velocity). An edge whose nearest side changed keeps a held contact with
+/// the side it pressed last tick, its normal impulse capped at [`HOLD_SHARE`] of last tick's. A
+/// node on an obstacle (within the skin of it) may not be
+/// pushed into it: the obstacle is a one-sided row of the same solve ([`GroundRow`]), and its
+/// impulses are added to `reactions`. Run before the collision net ([`resolve_body_collisions`]),
+/// which still guarantees no pass-through.
+pub fn respond_to_body_contacts(
+    bodies: &mut [Body],
+    group: &[usize],
+    (obstacles, reactions): (&[Obstacle], &mut [Vec3]),
+    scratch: &mut BodyContactScratch,
+    sub_stepped: impl Fn(usize, usize) -> bool,
+    dt: f64,
+) -> BodyContactCounters {
+    let mut counters = BodyContactCounters::default();
+    scratch.moved.clear();
+    scratch.moved.resize(bodies.len(), false);
+    // (Last tick's were carried into this tick's substeps.)
+    scratch.carried.clear();
+    scratch.forces.clear();
+    scratch.forces.resize(bodies.len(), Vec3::zeros());
+    scratch.work.clear();
+    scratch.work.resize(bodies.len(), 0.0);
+    scratch.prepared = Prepared::NoneNear;
+    counters.contacts_dropped += std::mem::take(&mut scratch.remembered_dropped);
+    if bodies.len() < 2 {
+        scratch.forget();
+        return counters;
+    }
+    scratch.contacts.clear();
+    // The bounds with no margin (kept for the net), then grown by the skin: the bodies near within
+    // the skin are those whose grown bounds meet.
+    scratch.find_bounds(bodies, group);
+    scratch.tight_bounds.clear();
+    scratch.tight_bounds.extend_from_slice(&scratch.bounds);
+    for (k, aabb) in scratch.bounds.iter_mut().enumerate() {
+        aabb.inflate(CONTACT_SKIN);
+        scratch.near[k] = false;
+    }
+    if !mark_near(group, &scratch.bounds, &mut scratch.near) {
+        scratch.forget();
+        return counters;
+    }
+    // Each vertex of a body near another once against that body's faces, each edge once against
+    // its edges: the candidates are the other body's triangles whose swept boxes meet the vertex's
+    // (edge's) swept box grown by the skin — a vertex (edge) within the skin of a face (edge) at
+    // the end of the tick has its swept box within the skin of that face's (edge's) box, and a
+    // vertex that crossed the inside of a face over the tick has a swept box meeting the face's.
+    // (A vertex ending deeper than the skin behind a face it did not cross inside is left to the
+    // collision net, which stops it: no pass-through either way.) The pairs that may meet are
+    // listed from the hierarchies only when a body moved out of the slack of its last listing
+    // ([`CandidateCache`]), and each listed pair is checked with this tick's boxes: the same
+    // candidates as a query of the hierarchies every tick, and the same contacts.
+    scratch.cache.list(
+        bodies,
+        group,
+        (&scratch.bounds, &scratch.near),
+        ListCall::Response,
+        &mut scratch.bvhs,
+        (&mut scratch.near_triangles, &mut scratch.found),
+        &mut counters,
+    );
+    scratch.now.begin(bodies);
+    scratch.prepared = Prepared::Listed;
+    let simd = crate::dynamics::kernel::simd_available();
+    let slots = scratch.cache.slots;
+    for i in 0..bodies.len() {
+        for j in 0..bodies.len() {
+            if i == j
+                || group.get(i).is_some_and(|g| group.get(j) == Some(g))
+                || !scratch.bounds[i].overlaps(&scratch.bounds[j])
+            {
+                continue;
+            }
+            let pair = i * slots + j;
+            if scratch.cache.listed[pair] == NOT_LISTED {
+                continue;
+            }
+            let [vertices, edges] = scratch.cache.ranges[pair];
+            vertex_face_contacts(bodies, (i, j), vertices, scratch, &mut counters, simd);
+            edge_edge_contacts(bodies, (i, j), edges, scratch, &mut counters, simd);
+        }
+    }
+    let held_from = scratch.contacts.len();
+    held_contacts(bodies, scratch, &mut counters);
+    let remembered_from = scratch.contacts.len();
+    remembered_contacts(bodies, scratch, &mut counters);
+    let (held_kept, remembered_kept) = keep_contacts(
+        bodies,
+        scratch,
+        &mut counters,
+        (held_from, remembered_from),
+        dt,
+    );
+    let solver_nodes = &mut scratch.solver_nodes;
+    counters.contacts = scratch.contacts.len() as u32;
+    // The obstacles the contacts' nodes rest on, which the impulses may not push them into.
+    counters.overflows += ground_rows(
+        solver_nodes,
+        obstacles,
+        (&scratch.ground_warm, |k| {
+            same_topology(&scratch.warm_versions, bodies, k)
+        }),
+        dt,
+    );
+    // Warm start: a contact that was there last tick, between the same nodes of bodies whose
+    // topology did not change, starts from last tick's impulses (its tangential one on this
+    // tick's tangent plane, within the cone): a resting stack's solve then starts where the last
+    // one ended instead of from nothing, so a few sweeps carry a heavy organ's weight through a
+    // light one's nodes (without it, its unfinished solves leave gaps below the rest distance
+    // each tick, and the parting, which knows no friction, lets the heavy organ creep off).
+    warm_start(
+        (&mut scratch.contacts, &mut scratch.contact_nodes),
+        (&scratch.warm, &scratch.warm_versions),
+        bodies,
+        solver_nodes,
+        dt,
+    );
+    // The displacements over the tick (where the nodes end: no approach past the rest distance,
+    // no slip where friction holds; the impulses change the end velocities alike). Each impulse
+    // changes the pair's momentum by equal and opposite amounts.
+    solve(
+        solver_nodes,
+        (&mut scratch.contacts, &mut scratch.contact_nodes),
+        dt,
+    );
+    apply_impulses(scratch, reactions, &sub_stepped, dt);
+    scratch.solver_nodes.write_back(bodies);
+    remember_for_next_tick(bodies, scratch, (held_kept, remembered_kept));
     counters
 }
 
