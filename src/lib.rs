@@ -21,6 +21,7 @@
 //! - [`device`]: the simulated haptic device (model and loop).
 //! - [`display`]: mesh keyframes and deltas for renderers, and the client that rebuilds them.
 //! - [`ipc`]: the shared-memory payloads (`proto/palpa_ipc.h`) and, with the `ipc` feature, services.
+//! - `report` (feature `cli`): the plots, progress bar and figures the bench and report tools share.
 //!
 //! ```
 //! use palpa::{World, scene::default_scene};
@@ -47,6 +48,8 @@ pub mod ipc;
 pub mod math;
 #[cfg(feature = "record")]
 pub mod record;
+#[cfg(feature = "cli")]
+pub mod report;
 pub mod scene;
 pub mod tool;
 pub mod topology;

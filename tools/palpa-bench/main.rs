@@ -21,8 +21,7 @@
 //!   step ([`reference`]: array of structs, scalar `f64`) of the same system, in the same run, best
 //!   of three, after checking that both step the same system.
 
-#[path = "../common/plot.rs"]
-mod plot;
+use palpa::report as plot;
 mod reference;
 mod remote;
 
@@ -175,16 +174,6 @@ fn main() -> Result<()> {
         Cmd::Echo { prefix, timeout } => echo(&prefix, timeout),
         Cmd::Daemon { prefix, timings } => daemon(&prefix, &timings),
     }
-}
-
-fn today() -> String {
-    Command::new("date")
-        .arg("-u")
-        .arg("+%Y-%m-%d %H:%M UTC")
-        .output()
-        .ok()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_default()
 }
 
 /// The daemon process to start: `palpa serve --rt` when the `palpa` executable sits next to this
@@ -371,7 +360,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
     let floor_median = floor_summary["median"].as_f64().unwrap_or(f64::NAN);
     let result = json!({
         "command": format!("palpa-bench latency{} --out {}", if args.quick { " --quick" } else { "" }, args.out.display()),
-        "date": today(),
+        "date": plot::utc_now(),
         "machine": machine(),
         "duration_s": duration,
         "scene": "embedded default (scenes/organ.toml), tool `probe`",
@@ -678,7 +667,7 @@ fn scaling(args: ScalingArgs) -> Result<()> {
             if args.one_thread { " --one-thread" } else { "" },
             args.out.display()
         ),
-        "date": today(),
+        "date": plot::utc_now(),
         "machine": machine(),
         "integrator": "multirate",
         "helper_thread": !args.one_thread,
@@ -1045,7 +1034,7 @@ fn bodies(args: GraspArgs) -> Result<()> {
          flat onto the table by the upper one, and their contact spans the organs).\n\n\
          | nodes per organ | organs | parameters | layout | body contact (µs) | tick (µs) | contacts per tick | ratio to apart |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- |\n",
-        today(),
+        plot::utc_now(),
         machine()
     );
     let mut rows = Vec::new();
@@ -1198,7 +1187,7 @@ fn bodies(args: GraspArgs) -> Result<()> {
         }));
     }
     let result = json!({
-        "command": command, "date": today(), "machine": machine(), "repetitions": reps,
+        "command": command, "date": plot::utc_now(), "machine": machine(), "repetitions": reps,
         "layouts": rows, "laparoscopy": spread, "laparoscopy_stages_us": stages,
         "landing": landing_spread, "landing_net_collisions_per_run": net_per_run,
         "crushed": crushed,
@@ -1262,7 +1251,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
     );
     let mut result = serde_json::Map::new();
     result.insert("command".into(), json!(command));
-    result.insert("date".into(), json!(today()));
+    result.insert("date".into(), json!(plot::utc_now()));
     result.insert("machine".into(), json!(machine()));
     result.insert("repetitions".into(), json!(reps));
     let mut md = format!(
@@ -1273,7 +1262,7 @@ fn grasp(args: GraspArgs) -> Result<()> {
          with tearing off. {reps} run(s) each, pooled.\n\n\
          | scene | samples | mean (µs) | p50 | p99 | p99.9 | max |\n\
          | --- | --- | --- | --- | --- | --- | --- |\n",
-        today(),
+        plot::utc_now(),
         machine()
     );
     for ((name, _, _), ticks) in cases.iter().zip(pooled) {
@@ -1358,7 +1347,7 @@ fn cut(args: CutArgs) -> Result<()> {
     let plain_spread = spread_of(without.clone());
     let result = json!({
         "command": command,
-        "date": today(),
+        "date": plot::utc_now(),
         "machine": machine(),
         "integrator": args.integrator,
         "surface_mass": args.surface_mass,
@@ -1624,7 +1613,7 @@ fn reference_comparison(args: ReferenceArgs) -> Result<()> {
             if args.quick { " --quick" } else { "" },
             args.out.display()
         ),
-        "date": today(),
+        "date": plot::utc_now(),
         "machine": machine(),
         "nodes": nodes,
         "edges": world.bodies[0].edges.len(),

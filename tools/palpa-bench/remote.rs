@@ -301,7 +301,7 @@ pub fn remote(out: &Path, quick: bool) -> Result<()> {
     };
     let result = json!({
         "command": format!("palpa-bench remote{} --out {}", if quick { " --quick" } else { "" }, out.display()),
-        "date": super::today(),
+        "date": super::plot::utc_now(),
         "machine": super::machine(),
         "round_trip": {
             "daemon": "palpa serve --lockstep (one tick per pose), embedded default scene, tool probe",

@@ -3,8 +3,7 @@
 //! stiffness × node mass with the analytic bound, and the stress scenes' outcomes. Writes a markdown
 //! report, SVG plots, the raw CSVs and a JSON summary into `--out DIR`.
 
-#[path = "../common/plot.rs"]
-mod plot;
+use palpa::report as plot;
 
 use anyhow::{Context, Result};
 use clap::Parser;
@@ -776,12 +775,7 @@ fn main() -> Result<()> {
         if quick { " --quick" } else { "" },
         out.display()
     );
-    let date = std::process::Command::new("date")
-        .args(["-u", "+%Y-%m-%d %H:%M UTC"])
-        .output()
-        .ok()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_default();
+    let date = plot::utc_now();
     let summary = json!({
         "command": command,
         "date": date,

@@ -1,14 +1,15 @@
-//! SVG plots for the bench and report tools (plotters, SVG backend, no system fonts needed).
-
-// Each tool uses a part of these helpers.
-#![allow(dead_code)]
+//! What the bench and report tools share (`palpa-bench`, `palpa-report`; feature `cli`): SVG plots
+//! (plotters, SVG backend, no system fonts needed), a progress bar, percentiles and fitted slopes,
+//! and the machine and date a report names.
 
 use plotters::prelude::*;
 use std::path::Path;
 
 /// One named curve.
 pub struct Series {
+    /// The curve's name in the legend.
     pub name: String,
+    /// Its points (x, y).
     pub points: Vec<(f64, f64)>,
     /// Draw points only, no line.
     pub points_only: bool,
@@ -234,6 +235,7 @@ pub struct Progress {
 }
 
 impl Progress {
+    /// A bar named `label` for `total` steps, drawn at once.
     pub fn new(label: &str, total: usize) -> Self {
         let p = Self {
             total: total.max(1),
@@ -244,6 +246,7 @@ impl Progress {
         p
     }
 
+    /// One step done; `what` is shown beside the bar.
     pub fn step(&mut self, what: &str) {
         self.done += 1;
         self.draw(what);
@@ -307,4 +310,12 @@ pub fn machine() -> String {
         .unwrap_or_else(|| "unknown CPU".into());
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     format!("{model}, {cpus} CPUs")
+}
+
+/// The date and time now, UTC, to the minute (`2026-12-06 10:30 UTC`), for reports.
+pub fn utc_now() -> String {
+    let format = time::macros::format_description!("[year]-[month]-[day] [hour]:[minute] UTC");
+    time::OffsetDateTime::now_utc()
+        .format(format)
+        .unwrap_or_default()
 }
