@@ -631,7 +631,34 @@ fn main() -> Result<()> {
     let (map, agreement) = stability_maps(quick, out, &mut progress)?;
     let ext = extremes(quick, &mut progress)?;
 
-    // Plots: error (log) against run time (log), one curve per integrator, per scene.
+    write_plots(out, &wp, &sub)?;
+    write_csvs(out, &wp, &sub, &map, &ext)?;
+    let summary = json!({
+        "command": format!("palpa-report{} --out {}", if quick { " --quick" } else { "" }, out.display()),
+        "date": plot::utc_now(),
+        "machine": machine(),
+        "repeats": repeats,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "work_precision": wp.rows,
+        "orders": wp.orders,
+        "subdivision": sub,
+        "stability_map": map,
+        "stability_bound_agreement": agreement,
+        "extremes": ext,
+    });
+    std::fs::write(
+        out.join("report.json"),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
+    let md = markdown(&summary);
+    std::fs::write(out.join("report.md"), &md)?;
+    println!("{md}");
+    Ok(())
+}
+
+/// Error against run time (log–log), one curve per integrator, per scene; and the subdivision's
+/// variants against uniform meshes.
+fn write_plots(out: &Path, wp: &WorkPrecision, sub: &[Value]) -> Result<()> {
     for (scene, key, label) in [
         (
             "oscillator",
@@ -694,6 +721,17 @@ fn main() -> Result<()> {
     )
     .map_err(|e| anyhow::anyhow!(e))?;
 
+    Ok(())
+}
+
+/// The tables of the report as CSV files.
+fn write_csvs(
+    out: &Path,
+    wp: &WorkPrecision,
+    sub: &[Value],
+    map: &[Value],
+    ext: &[Value],
+) -> Result<()> {
     std::fs::write(
         out.join("work_precision.csv"),
         csv(
@@ -729,7 +767,7 @@ fn main() -> Result<()> {
     std::fs::write(
         out.join("subdivision.csv"),
         csv(
-            &sub,
+            sub,
             &[
                 "variant",
                 "nodes",
@@ -742,7 +780,7 @@ fn main() -> Result<()> {
     std::fs::write(
         out.join("stability_map.csv"),
         csv(
-            &map,
+            map,
             &[
                 "integrator",
                 "link_stiffness_n_per_m",
@@ -757,7 +795,7 @@ fn main() -> Result<()> {
     std::fs::write(
         out.join("extremes.csv"),
         csv(
-            &ext,
+            ext,
             &[
                 "scene",
                 "integrator",
@@ -770,32 +808,6 @@ fn main() -> Result<()> {
             ],
         ),
     )?;
-    let command = format!(
-        "palpa-report{} --out {}",
-        if quick { " --quick" } else { "" },
-        out.display()
-    );
-    let date = plot::utc_now();
-    let summary = json!({
-        "command": command,
-        "date": date,
-        "machine": machine(),
-        "repeats": repeats,
-        "wall_seconds": started.elapsed().as_secs_f64(),
-        "work_precision": wp.rows,
-        "orders": wp.orders,
-        "subdivision": sub,
-        "stability_map": map,
-        "stability_bound_agreement": agreement,
-        "extremes": ext,
-    });
-    std::fs::write(
-        out.join("report.json"),
-        serde_json::to_string_pretty(&summary)?,
-    )?;
-    let md = markdown(&summary);
-    std::fs::write(out.join("report.md"), &md)?;
-    println!("{md}");
     Ok(())
 }
 
