@@ -251,8 +251,7 @@ impl Recording {
             keyframe_every_s: 2.0,
         };
         // An offline run waits for the writer rather than drop a record.
-        let recorder = Recorder::start(path, scene, world, &session, RecorderSettings::default())
-            .map_err(|e| anyhow::anyhow!(e))?
+        let recorder = Recorder::start(path, scene, world, &session, RecorderSettings::default())?
             .waiting_when_full();
         let this = Self {
             sink: RecordSink::to(recorder),
@@ -322,7 +321,7 @@ impl Recording {
 
     fn finish(self) -> Result<()> {
         #[cfg(feature = "record")]
-        if let Some(summary) = self.sink.finish().map_err(|e| anyhow::anyhow!(e))? {
+        if let Some(summary) = self.sink.finish()? {
             let total: u64 = summary.messages.values().sum();
             println!("recorded {total} messages ({} dropped)", summary.dropped);
         }
@@ -559,7 +558,8 @@ fn serve(args: ServeArgs) -> Result<()> {
                         &world,
                         &session,
                         RecorderSettings::default(),
-                    )?)
+                    )
+                    .map_err(|e| e.to_string())?)
                 }
                 None => palpa::daemon::sink::RecordSink::none(),
             };
@@ -598,7 +598,7 @@ fn serve(args: ServeArgs) -> Result<()> {
                     );
                 }
                 Ok(None) => {}
-                Err(e) if served.is_ok() => return Err(e),
+                Err(e) if served.is_ok() => return Err(e.to_string()),
                 Err(e) => eprintln!("palpa serve: {e}"),
             }
             served

@@ -173,7 +173,12 @@ impl RecordSink {
     /// Closes the recording (returns the messages written per topic and the drops) and stops the
     /// live view (see [`RecordSink::finish_all`] for its figures).
     #[cfg(feature = "record")]
-    pub fn finish(self) -> Result<Option<crate::record::recorder::RecordingSummary>, String> {
+    pub fn finish(
+        self,
+    ) -> Result<
+        Option<crate::record::recorder::RecordingSummary>,
+        crate::record::recorder::RecordError,
+    > {
         self.finish_all().0
     }
 
@@ -183,7 +188,10 @@ impl RecordSink {
     pub fn finish_all(
         self,
     ) -> (
-        Result<Option<crate::record::recorder::RecordingSummary>, String>,
+        Result<
+            Option<crate::record::recorder::RecordingSummary>,
+            crate::record::recorder::RecordError,
+        >,
         Option<LiveSummary>,
     ) {
         let recording = match self.recorder {

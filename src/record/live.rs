@@ -29,8 +29,8 @@ use tokio::net::{TcpListener, TcpStream};
 
 use super::DESCRIPTOR_SET;
 use super::recorder::{
-    MessageOut, Record, RecordEncoder, RecordQueue, TOPIC_EVENTS, TOPIC_STATS, feedback_topic,
-    largest_mesh_message,
+    MessageOut, Record, RecordEncoder, RecordError, RecordQueue, TOPIC_EVENTS, TOPIC_STATS,
+    feedback_topic, largest_mesh_message,
 };
 use super::visual::{TOPIC_SCENE_UPDATE, scene_update_schema};
 pub use crate::daemon::sink::LiveSummary;
@@ -320,7 +320,7 @@ impl MessageOut for LiveChannels {
 
     /// Publishes `data` on `topic` (to every viewer subscribed to it); a topic the live view does not
     /// show is ignored.
-    fn write(&mut self, topic: &str, _log_time: u64, data: &[u8]) -> Result<(), String> {
+    fn write(&mut self, topic: &str, _log_time: u64, data: &[u8]) -> Result<(), RecordError> {
         if let Some(channel) = self.channels.get(topic) {
             // Stamped with the time it is sent: a live view runs on the viewer's clock.
             channel.log_with_meta(data, PartialMetadata::default());

@@ -227,11 +227,42 @@ pub fn largest_mesh_message(world: &World) -> usize {
         .unwrap_or(0)
 }
 
+/// What can go wrong while recording a session.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The recording's file could not be created.
+    #[error("cannot create {}: {reason}", path.display())]
+    Create {
+        /// The file asked for.
+        path: std::path::PathBuf,
+        /// Why (in the message).
+        reason: std::io::Error,
+    },
+    /// A mesh file the scene loaded could not be read again to be attached.
+    #[error("cannot read {}: {reason}", path.display())]
+    ReadAsset {
+        /// The mesh file.
+        path: std::path::PathBuf,
+        /// Why (in the message).
+        reason: std::io::Error,
+    },
+    /// Writing the MCAP file failed (what was written before stays readable up to the last
+    /// flushed chunk).
+    #[error("recording: {0}")]
+    Mcap(#[from] mcap::McapError),
+    /// The writer thread could not be started.
+    #[error("cannot start the recorder thread: {0}")]
+    Thread(std::io::Error),
+    /// The writer thread panicked.
+    #[error("the recorder thread panicked")]
+    Panicked,
+}
+
 /// The tick side of the recorder.
 pub struct Recorder {
     records: RecordQueue,
     done: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<RecordingSummary, String>>>,
+    thread: Option<JoinHandle<Result<RecordingSummary, RecordError>>>,
     /// Wait for room instead of dropping (an offline run, where no deadline is at stake).
     wait_when_full: bool,
 }
@@ -257,29 +288,28 @@ impl Recorder {
         world: &World,
         session: &SessionInfo,
         settings: RecorderSettings,
-    ) -> Result<Self, String> {
-        let file =
-            File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+    ) -> Result<Self, RecordError> {
+        let file = File::create(path).map_err(|reason| RecordError::Create {
+            path: path.to_path_buf(),
+            reason,
+        })?;
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .compression_threads(0)
             .chunk_size(Some(settings.chunk_bytes))
             .profile("palpa")
             .library(concat!("palpa ", env!("CARGO_PKG_VERSION")))
-            .create(BufWriter::new(file))
-            .map_err(|e| format!("cannot start the MCAP file: {e}"))?;
-        let mut channels = Channels::new(&mut writer, world).map_err(|e| e.to_string())?;
+            .create(BufWriter::new(file))?;
+        let mut channels = Channels::new(&mut writer, world)?;
         let scene_message = scene_record(scene, world, session);
-        channels
-            .write(
-                &mut writer,
-                "/palpa/scene",
-                0,
-                &scene_message.encode_to_vec(),
-            )
-            .map_err(|e| e.to_string())?;
-        attach_assets(&mut writer, scene).map_err(|e| e.to_string())?;
-        writer.flush().map_err(|e| e.to_string())?;
+        channels.write(
+            &mut writer,
+            "/palpa/scene",
+            0,
+            &scene_message.encode_to_vec(),
+        )?;
+        attach_assets(&mut writer, scene)?;
+        writer.flush()?;
 
         let records = RecordQueue::new(
             settings.queue_capacity,
@@ -297,7 +327,7 @@ impl Recorder {
         let thread = std::thread::Builder::new()
             .name("palpa-recorder".into())
             .spawn(move || thread_state.run())
-            .map_err(|e| format!("cannot start the recorder thread: {e}"))?;
+            .map_err(RecordError::Thread)?;
         Ok(Self {
             records,
             done,
@@ -324,16 +354,14 @@ impl Recorder {
     }
 
     /// Drains the queue, writes the summary and closes the file.
-    pub fn finish(mut self) -> Result<RecordingSummary, String> {
+    pub fn finish(mut self) -> Result<RecordingSummary, RecordError> {
         self.close()
     }
 
-    fn close(&mut self) -> Result<RecordingSummary, String> {
+    fn close(&mut self) -> Result<RecordingSummary, RecordError> {
         self.done.store(true, Ordering::Release);
         match self.thread.take() {
-            Some(t) => t
-                .join()
-                .map_err(|_| "the recorder thread panicked".to_string())?,
+            Some(t) => t.join().map_err(|_| RecordError::Panicked)?,
             None => Ok(RecordingSummary::default()),
         }
     }
@@ -492,28 +520,26 @@ pub fn scene_record(scene: &Scene, world: &World, session: &SessionInfo) -> prot
 fn attach_assets<W: std::io::Write + std::io::Seek>(
     writer: &mut mcap::Writer<W>,
     scene: &Scene,
-) -> Result<(), String> {
-    writer
-        .attach(&mcap::Attachment {
+) -> Result<(), RecordError> {
+    writer.attach(&mcap::Attachment {
+        log_time: 0,
+        create_time: 0,
+        name: "scene.toml".into(),
+        media_type: "application/toml".into(),
+        data: std::borrow::Cow::Borrowed(scene.source.as_bytes()),
+    })?;
+    for (relative, path) in &scene.asset_names {
+        let data = std::fs::read(path).map_err(|reason| RecordError::ReadAsset {
+            path: path.clone(),
+            reason,
+        })?;
+        writer.attach(&mcap::Attachment {
             log_time: 0,
             create_time: 0,
-            name: "scene.toml".into(),
-            media_type: "application/toml".into(),
-            data: std::borrow::Cow::Borrowed(scene.source.as_bytes()),
-        })
-        .map_err(|e| e.to_string())?;
-    for (relative, path) in &scene.asset_names {
-        let data =
-            std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        writer
-            .attach(&mcap::Attachment {
-                log_time: 0,
-                create_time: 0,
-                name: relative.clone(),
-                media_type: "model/obj".into(),
-                data: std::borrow::Cow::Owned(data),
-            })
-            .map_err(|e| e.to_string())?;
+            name: relative.clone(),
+            media_type: "model/obj".into(),
+            data: std::borrow::Cow::Owned(data),
+        })?;
     }
     Ok(())
 }
@@ -600,7 +626,7 @@ pub trait MessageOut {
     /// written).
     fn wants(&self, topic: &str) -> bool;
     /// Writes one encoded message of `topic`, at `log_time` (ns of simulation time).
-    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), String>;
+    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), RecordError>;
 }
 
 /// The MCAP file of a recording.
@@ -614,10 +640,10 @@ impl MessageOut for McapOut {
         true
     }
 
-    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), String> {
-        self.channels
-            .write(&mut self.writer, topic, log_time, data)
-            .map_err(|e| format!("recording: {e}"))
+    fn write(&mut self, topic: &str, log_time: u64, data: &[u8]) -> Result<(), RecordError> {
+        Ok(self
+            .channels
+            .write(&mut self.writer, topic, log_time, data)?)
     }
 }
 
@@ -663,7 +689,7 @@ impl RecordEncoder {
         out: &mut dyn MessageOut,
         tick: u64,
         count: u64,
-    ) -> Result<(), String> {
+    ) -> Result<(), RecordError> {
         let event = proto::Event {
             tick,
             kind: proto::event::Kind::RecordDropped as i32,
@@ -679,7 +705,7 @@ impl RecordEncoder {
         &mut self,
         out: &mut dyn MessageOut,
         message: &proto::Event,
-    ) -> Result<u64, String> {
+    ) -> Result<u64, RecordError> {
         if out.wants(TOPIC_EVENTS) {
             out.write(
                 TOPIC_EVENTS,
@@ -698,7 +724,7 @@ impl RecordEncoder {
         pool: &ArrayQueue<Vec<u8>>,
         dropped: u64,
         out: &mut dyn MessageOut,
-    ) -> Result<u64, String> {
+    ) -> Result<u64, RecordError> {
         let dt = self.dt_ns;
         match record {
             Record::Input {
@@ -841,7 +867,7 @@ struct WriterThread {
 }
 
 impl WriterThread {
-    fn run(mut self) -> Result<RecordingSummary, String> {
+    fn run(mut self) -> Result<RecordingSummary, RecordError> {
         let mut last_flush_tick = 0u64;
         let mut reported_drops = 0u64;
         loop {
@@ -857,10 +883,7 @@ impl WriterThread {
                 )?;
                 if tick >= last_flush_tick + self.flush_every_ticks {
                     // Close the chunk: what is on disk stays readable if the process dies now.
-                    self.out
-                        .writer
-                        .flush()
-                        .map_err(|e| format!("recording: {e}"))?;
+                    self.out.writer.flush()?;
                     last_flush_tick = tick;
                 }
             }
@@ -880,10 +903,7 @@ impl WriterThread {
                 std::thread::sleep(std::time::Duration::from_millis(1));
             }
         }
-        self.out
-            .writer
-            .finish()
-            .map_err(|e| format!("closing the recording: {e}"))?;
+        self.out.writer.finish()?;
         Ok(RecordingSummary {
             messages: self.out.channels.counts,
             dropped: self.records.dropped(),
