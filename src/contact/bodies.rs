@@ -2859,9 +2859,9 @@ fn remembered_contacts(
     }
 }
 
-/// One contact per vertex (or edge) and other body, the nearest (kept above; a vertex pressed into
-/// a fold takes up to two more, see `crossed_too`, an edge one more with a side it crossed from
-/// within the skin, `edge_edge_crossed_from_near`), in a fixed order:
+/// Keeps this tick's contacts: one per vertex (or edge) and other body, the nearest (a vertex
+/// pressed into a fold takes up to two more, see `crossed_too`, an edge one more with a side it
+/// crossed from within the skin, `edge_edge_crossed_from_near`), in a fixed order:
 /// the order the lists name the vertices and edges in, pair of bodies after pair. Each vertex
 /// (edge) of a body is named in one run of its pair's list (through the one triangle that owns
 /// it), and the lists keep the order of a traversal of the hierarchies whose descent does not
