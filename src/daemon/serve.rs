@@ -392,7 +392,6 @@ struct Daemon<'a> {
     /// per pose). Input checks measure time on it, never on the bridges' time stamps.
     clock: u64,
     dt: f64,
-    period_us: f64,
     /// IPC failing on every tick for a second (or every poll of a lockstep wait for a second of
     /// wall time) is what the daemon cannot go on from; anything shorter is counted and outlived.
     fatal_streak: u64,
@@ -429,7 +428,6 @@ impl<'a> Daemon<'a> {
             paused: false,
             clock: 0,
             dt,
-            period_us: dt * 1e6,
             fatal_streak: ((1.0 / dt).round() as u64).max(1),
         })
     }
@@ -651,10 +649,10 @@ impl<'a> Daemon<'a> {
     /// The tick's compute time and wake-up lateness into the statistics (published once per
     /// window); the tick counted; `summary.fatal` set when IPC failed on too many ticks in a row.
     fn close_tick(&mut self, compute_us: f64, lateness_us: f64) {
-        self.stats.record(compute_us, lateness_us, self.period_us);
-        self.whole_run
-            .record(compute_us, lateness_us, self.period_us);
-        if compute_us > self.period_us {
+        let period_us = self.dt * 1e6;
+        self.stats.record(compute_us, lateness_us, period_us);
+        self.whole_run.record(compute_us, lateness_us, period_us);
+        if compute_us > period_us {
             self.sink
                 .event(self.world.tick, event::SYNCHRONICITY_MISS, None);
         }
