@@ -479,16 +479,36 @@ pub enum NodePass {
     IntegrateFree,
 }
 
+/// A node's edge-force accumulator: x, y, z and a zero (N, world frame), aligned to 32 bytes so
+/// that the one AVX load and store of a lane's force never straddle two cache lines (a node in
+/// two of an unaligned array would).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(32))]
+struct Accumulator([f64; 4]);
+
+impl std::ops::Deref for Accumulator {
+    type Target = [f64; 4];
+    fn deref(&self) -> &[f64; 4] {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Accumulator {
+    fn deref_mut(&mut self) -> &mut [f64; 4] {
+        &mut self.0
+    }
+}
+
 /// Per-body scratch of the force stage.
 #[derive(Clone, Debug)]
 pub struct ForceKernel {
     batches: EdgeBatches,
-    /// Edge forces per node, x, y, z and a zero (N, world frame), then padding: one 32-byte
-    /// vector a node, so that a lane adds its force to an end with one vector operation.
-    force: Vec<[f64; 4]>,
+    /// Edge forces per node: one aligned 32-byte vector a node, so that a lane adds its force to
+    /// an end with one vector operation.
+    force: Vec<Accumulator>,
     /// The accumulators of the batches across a split body's node cut (see [`SPLIT_NODES`]): zero
     /// but between the edge pass's units and their addition to `force`.
-    force_b: Vec<[f64; 4]>,
+    force_b: Vec<Accumulator>,
     /// A split body's batches by the side of the node cut their ends lie on.
     split: SplitBatches,
     /// Every accumulator of `force` is zero: the node pass clears each one after reading it (the
@@ -604,7 +624,7 @@ impl ForceKernel {
         let n = body.node_count();
         if !self.force_clear || self.force.len() != n {
             self.force.clear();
-            self.force.resize(n, [0.0; 4]);
+            self.force.resize(n, Accumulator::default());
         }
         self.force_clear = false;
         self.blocks.drop_all();
@@ -615,7 +635,7 @@ impl ForceKernel {
         let all = self.batches.ends_of.len();
         if !split {
             let mut energy = [0.0; LANES];
-            let f = self.force.as_mut_ptr();
+            let f = self.force.as_mut_ptr().cast();
             // SAFETY: `f` holds the body's nodes (resized above), every end of the batches.
             unsafe { edge_part(&self.batches, 0..all, x, v, f, &mut energy, simd) };
             self.edge_energy = lane_sum(&energy);
@@ -623,7 +643,7 @@ impl ForceKernel {
         }
         if self.force_b.len() != n {
             self.force_b.clear();
-            self.force_b.resize(n, [0.0; 4]);
+            self.force_b.resize(n, Accumulator::default());
         }
         let cut = node_cut(n);
         let stamp = self.built_for.map(|(version, ..)| (version, n, all, cut));
@@ -635,8 +655,8 @@ impl ForceKernel {
         // Three units: the batches wholly below the node cut and wholly above it, into the
         // accumulators (their nodes differ), and the batches across it, into the second ones.
         let mut energies = [[0.0; LANES]; 3];
-        let force = Shared(self.force.as_mut_ptr());
-        let force_b = Shared(self.force_b.as_mut_ptr());
+        let force = Shared(self.force.as_mut_ptr().cast::<[f64; 4]>());
+        let force_b = Shared(self.force_b.as_mut_ptr().cast::<[f64; 4]>());
         let energy = Shared(energies.as_mut_ptr());
         let (batches, units) = (&self.batches, &self.split.units);
         run_units(helper, 3, &|u| {
@@ -654,7 +674,7 @@ impl ForceKernel {
             for d in 0..3 {
                 f[d] += g[d];
             }
-            *g = [0.0; 4];
+            *g = Accumulator::default();
         }
         let energy: [f64; LANES] =
             std::array::from_fn(|l| (energies[0][l] + energies[1][l]) + energies[2][l]);
@@ -796,7 +816,7 @@ struct Frame {
 /// The per-node arrays the node pass reads and writes.
 struct Nodes<'a> {
     /// Read, then cleared for the next edge pass.
-    edge_force: &'a mut [[f64; 4]],
+    edge_force: &'a mut [Accumulator],
     mass: &'a [f64],
     inverse_mass: &'a [f64],
     air: &'a [f64],
@@ -952,7 +972,7 @@ fn node_block<const W: usize>(
             hb[d][l] = nodes.homologue_in_body[i][d];
             fe[d][l] = nodes.edge_force[i][d];
         }
-        nodes.edge_force[i] = [0.0; 4];
+        nodes.edge_force[i] = Accumulator::default();
         m[l] = nodes.mass[i];
         im[l] = nodes.inverse_mass[i];
         air[l] = nodes.air[i];
@@ -1521,6 +1541,40 @@ pub(crate) mod avx {
         }
     }
 
+    /// `p[b] − p[a]` for the four lanes' nodes (`p` an array of `Vec3`), as vectors of x, y and z:
+    /// each lane's difference taken on its ends' `[x y z]` (loaded masked: the last node's load
+    /// stays in the array), then the four lanes transposed — half the shuffles of gathering both
+    /// ends first. The same subtractions as [`sub3`] of two [`gather3`]s: the same bits.
+    ///
+    /// # Safety
+    /// `p` points to an array of `Vec3` with more than every index elements; AVX.
+    #[inline(always)]
+    pub(crate) unsafe fn gather_difference3(
+        p: *const f64,
+        a: &[u32; LANES],
+        b: &[u32; LANES],
+    ) -> [__m256d; 3] {
+        unsafe {
+            let xyz = _mm256_set_epi64x(0, -1, -1, -1);
+            let lane = |l: usize| {
+                _mm256_sub_pd(
+                    _mm256_maskload_pd(p.add(3 * b[l] as usize), xyz),
+                    _mm256_maskload_pd(p.add(3 * a[l] as usize), xyz),
+                )
+            };
+            let (d0, d1, d2, d3) = (lane(0), lane(1), lane(2), lane(3));
+            let t0 = _mm256_unpacklo_pd(d0, d1);
+            let t1 = _mm256_unpackhi_pd(d0, d1);
+            let t2 = _mm256_unpacklo_pd(d2, d3);
+            let t3 = _mm256_unpackhi_pd(d2, d3);
+            [
+                _mm256_permute2f128_pd::<0x20>(t0, t2),
+                _mm256_permute2f128_pd::<0x20>(t1, t3),
+                _mm256_permute2f128_pd::<0x31>(t0, t2),
+            ]
+        }
+    }
+
     /// `b − a`, component by component.
     #[target_feature(enable = "avx")]
     #[inline]
@@ -1579,16 +1633,12 @@ pub(crate) mod avx {
             let (ends, rest) = (&batches.ends_of[i], &batches.rest[i]);
             let [ga, gb] = ends;
             // SAFETY (all loads and stores): indices within the slices, as the caller guarantees.
-            let (xa, xb, va, vb) = unsafe {
+            let (d, u) = unsafe {
                 (
-                    gather3(xp, ga),
-                    gather3(xp, gb),
-                    gather3(vp, ga),
-                    gather3(vp, gb),
+                    gather_difference3(xp, ga, gb),
+                    gather_difference3(vp, ga, gb),
                 )
             };
-            let d = sub3(xb, xa);
-            let u = sub3(vb, va);
             let (rest, k, c) = unsafe {
                 let rest = _mm256_loadu_pd(rest.as_ptr());
                 match batches.uniform {

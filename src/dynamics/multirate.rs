@@ -1351,7 +1351,7 @@ fn add_spring_forces(e: &crate::body::Edges, x: &[Vec3], v: &[Vec3], f: &mut [Ve
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use crate::Vec3;
-    use crate::dynamics::kernel::avx::{dot3, gather3, sub3};
+    use crate::dynamics::kernel::avx::{dot3, gather_difference3};
     use std::arch::x86_64::*;
 
     /// The springs in blocks of four, as [`super::spring_pull`] computes one: d = x_b − x_a,
@@ -1385,19 +1385,15 @@ mod avx {
                 "a spring's end is not a node"
             );
             // SAFETY: every index is below the lengths, checked just above.
-            let (xa, xb, va, vb) = unsafe {
+            let (d, u) = unsafe {
                 (
-                    gather3(xp, &a),
-                    gather3(xp, &b),
-                    gather3(vp, &a),
-                    gather3(vp, &b),
+                    gather_difference3(xp, &a, &b),
+                    gather_difference3(vp, &a, &b),
                 )
             };
-            let d = sub3(xb, xa);
             let length2 = dot3(d, d);
             let length = _mm256_sqrt_pd(length2);
             let inverse = _mm256_div_pd(one, length);
-            let u = sub3(vb, va);
             let along = dot3(u, d);
             // SAFETY: k0 + 4 ≤ e.len(), the length of each of these arrays.
             let (k, c, rest) = unsafe {
