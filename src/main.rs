@@ -645,8 +645,9 @@ fn demo(
     (rt, timings): (bool, Option<&Path>),
     live: Option<&str>,
 ) -> Result<()> {
+    use iceoryx2::prelude::PortFactory;
     use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
-    use palpa::ipc::services::{create_node, stats_service};
+    use palpa::ipc::services::{IpcError, create_node, stats_service};
     use std::io::{IsTerminal, Write};
     use std::process::{Command as Process, Stdio};
     use std::sync::Arc;
@@ -714,10 +715,12 @@ fn demo(
         .stdout(Stdio::piped())
         .spawn()
         .context("cannot start palpa serve")?;
-    let node = create_node().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let stats = stats_service(&node, &prefix)
-        .and_then(|f| Ok(f.subscriber_builder().create()?))
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let node = create_node()?;
+    let stats = stats_service(&node, &prefix)?;
+    let stats = stats
+        .subscriber_builder()
+        .create()
+        .map_err(|e| IpcError::port(stats.name(), "subscriber", e))?;
     let stop = Arc::new(AtomicBool::new(false));
     // Every device but the first on a thread of its own, leaving its last status for the first
     // device's status line.

@@ -26,7 +26,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::server::Server;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
-use iceoryx2::prelude::{Node, ipc};
+use iceoryx2::prelude::{Node, PortFactory, ipc};
 
 use crate::daemon::feedback_payload;
 use crate::daemon::input::{InputLimits, ToolInputState};
@@ -340,26 +340,45 @@ impl Ports {
             if matches!(tool.input, ToolInput::Ipc) {
                 let pose = pose_service(node, prefix, &tool.name)?;
                 let feedback_of = feedback_service(node, prefix, &tool.name)?;
-                poses.push(pose.subscriber_builder().create()?);
-                let publisher = feedback_of.publisher_builder().create()?;
-                publisher.send_copy(ToolFeedbackV1 {
-                    flags: FEEDBACK_STALE,
-                    ..ToolFeedbackV1::default()
-                })?;
+                poses.push(
+                    pose.subscriber_builder()
+                        .create()
+                        .map_err(|e| IpcError::port(pose.name(), "subscriber", e))?,
+                );
+                let publisher = feedback_of
+                    .publisher_builder()
+                    .create()
+                    .map_err(|e| IpcError::port(feedback_of.name(), "publisher", e))?;
+                publisher
+                    .send_copy(ToolFeedbackV1 {
+                        flags: FEEDBACK_STALE,
+                        ..ToolFeedbackV1::default()
+                    })
+                    .map_err(|e| IpcError::transfer(feedback_of.name(), "send", e))?;
                 feedback.push(publisher);
                 ipc_tools.push(index);
             }
         }
+        let stats = stats_service(node, prefix)?;
+        let meshes = mesh_service(node, prefix)?;
+        let control = control_service(node, prefix)?;
         Ok(Self {
             ipc_tools,
             poses,
             feedback,
-            stats: stats_service(node, prefix)?.publisher_builder().create()?,
-            meshes: mesh_service(node, prefix)?
+            stats: stats
+                .publisher_builder()
+                .create()
+                .map_err(|e| IpcError::port(stats.name(), "publisher", e))?,
+            meshes: meshes
                 .publisher_builder()
                 .initial_max_slice_len(max_mesh_bytes)
-                .create()?,
-            control: control_service(node, prefix)?.server_builder().create()?,
+                .create()
+                .map_err(|e| IpcError::port(meshes.name(), "publisher", e))?,
+            control: control
+                .server_builder()
+                .create()
+                .map_err(|e| IpcError::port(control.name(), "server", e))?,
         })
     }
 }

@@ -11,6 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::PortFactory;
 
 use super::model::{Device, DeviceSpec, Hand};
 use crate::Vec3;
@@ -448,34 +449,38 @@ pub fn run_device(
     let target_at = |t: f64| -> (Vec3, f64) { pose_at(t).0 };
 
     let node = create_node()?;
-    let publisher = pose_service(&node, &options.prefix, &options.tool)?
+    let poses = pose_service(&node, &options.prefix, &options.tool)?;
+    let publisher = poses
         .publisher_builder()
-        .create()?;
-    let subscriber = feedback_service(&node, &options.prefix, &options.tool)?
+        .create()
+        .map_err(|e| IpcError::port(poses.name(), "publisher", e))?;
+    let feedback = feedback_service(&node, &options.prefix, &options.tool)?;
+    let subscriber = feedback
         .subscriber_builder()
-        .create()?;
+        .create()
+        .map_err(|e| IpcError::port(feedback.name(), "subscriber", e))?;
+    let received = |e| IpcError::transfer(feedback.name(), "receive", e);
+    let connected = |e| IpcError::transfer(poses.name(), "update connections", e);
 
     // Wait for the daemon: its feedback publisher hands us the last feedback (history 1) once both
     // ends are connected. Then make sure our first pose reaches its subscriber.
     let waiting = Instant::now();
     loop {
-        if subscriber.receive()?.is_some() {
+        if subscriber.receive().map_err(received)?.is_some() {
             break;
         }
         if stop.load(Ordering::Relaxed) {
             return Ok(DeviceReport::default());
         }
         if waiting.elapsed() > Duration::from_secs(30) {
-            return Err(format!(
-                "no daemon answers on prefix {:?} (is `palpa serve --prefix {}` running?)",
-                options.prefix, options.prefix
-            )
-            .into());
+            return Err(IpcError::NoDaemon {
+                prefix: options.prefix.clone(),
+            });
         }
-        publisher.update_connections()?;
+        publisher.update_connections().map_err(connected)?;
         std::thread::sleep(Duration::from_millis(1));
     }
-    publisher.update_connections()?;
+    publisher.update_connections().map_err(connected)?;
 
     let dt = 0.001;
     let ticks = (options.duration / dt).round() as u64;
@@ -520,15 +525,17 @@ pub fn run_device(
         }
         let seq = tick;
         tally.mark_sent(seq);
-        publisher.send_copy(ToolPoseV1 {
-            seq,
-            device_time_ns: monotonic_ns(),
-            position: position.into(),
-            orientation,
-            jaw,
-            buttons: 0,
-            reserved: 0,
-        })?;
+        publisher
+            .send_copy(ToolPoseV1 {
+                seq,
+                device_time_ns: monotonic_ns(),
+                position: position.into(),
+                orientation,
+                jaw,
+                buttons: 0,
+                reserved: 0,
+            })
+            .map_err(|e| IpcError::transfer(poses.name(), "send", e))?;
         sent += 1;
         if options.lockstep {
             let give_up = Instant::now() + Duration::from_secs(10);
@@ -536,7 +543,7 @@ pub fn run_device(
                 && Instant::now() < give_up
                 && !stop.load(Ordering::Relaxed)
             {
-                while let Some(sample) = subscriber.receive()? {
+                while let Some(sample) = subscriber.receive().map_err(received)? {
                     tally.take(sample.payload(), Instant::now());
                 }
                 if tally.answered_up_to < seq {
@@ -544,7 +551,7 @@ pub fn run_device(
                 }
             }
         } else {
-            while let Some(sample) = subscriber.receive()? {
+            while let Some(sample) = subscriber.receive().map_err(received)? {
                 tally.take(sample.payload(), Instant::now());
             }
         }
@@ -572,7 +579,7 @@ pub fn run_device(
     // Collect the last answers.
     let settle = Instant::now() + Duration::from_millis(50);
     while Instant::now() < settle {
-        while let Some(sample) = subscriber.receive()? {
+        while let Some(sample) = subscriber.receive().map_err(received)? {
             tally.take(sample.payload(), Instant::now());
         }
         std::thread::sleep(Duration::from_millis(1));

@@ -10,8 +10,84 @@ use crate::ipc::payload::{
     ControlRequestV1, ControlResponseV1, MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1,
 };
 
-/// Any iceoryx2 error, boxed: services are set up once, errors are reported where handled.
-pub type IpcError = Box<dyn core::error::Error>;
+/// What failed in setting up or using the services: each names the service (or prefix) it was
+/// for, with iceoryx2's own account of the failure.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    /// This process's iceoryx2 node could not be created.
+    #[error("cannot create this process's iceoryx2 node: {0}")]
+    Node(String),
+    /// A service name iceoryx2 refuses (a prefix with characters it does not accept).
+    #[error("{name:?} is not a service name iceoryx2 accepts: {reason}")]
+    Name {
+        /// The name asked for.
+        name: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// A service could not be opened or created (for one, it exists with other settings).
+    #[error("cannot open or create the service {service:?}: {reason}")]
+    Service {
+        /// The service's name.
+        service: String,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// A port of a service could not be created.
+    #[error("cannot create a {port} of the service {service:?}: {reason}")]
+    Port {
+        /// The service's name.
+        service: String,
+        /// `publisher`, `subscriber`, `server` or `client`.
+        port: &'static str,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// Sending, receiving or reaching the other ends of a service failed.
+    #[error("{what} on the service {service:?} failed: {reason}")]
+    Transfer {
+        /// The service's name.
+        service: String,
+        /// What was being done (`send`, `receive`, `update connections`).
+        what: &'static str,
+        /// iceoryx2's reason.
+        reason: String,
+    },
+    /// No daemon answered a device on its prefix in the time it waits.
+    #[error("no daemon answers on prefix {prefix:?} (is `palpa serve --prefix {prefix}` running?)")]
+    NoDaemon {
+        /// The prefix the device used.
+        prefix: String,
+    },
+}
+
+impl IpcError {
+    /// A port of `service` that could not be created.
+    pub fn port(
+        service: &ServiceName,
+        port: &'static str,
+        reason: impl core::fmt::Display,
+    ) -> Self {
+        Self::Port {
+            service: service.to_string(),
+            port,
+            reason: reason.to_string(),
+        }
+    }
+
+    /// `what` on `service` failed.
+    pub fn transfer(
+        service: &ServiceName,
+        what: &'static str,
+        reason: impl core::fmt::Display,
+    ) -> Self {
+        Self::Transfer {
+            service: service.to_string(),
+            what,
+            reason: reason.to_string(),
+        }
+    }
+}
 
 /// CLOCK_MONOTONIC in nanoseconds: the clock of `device_time_ns` and of receive times.
 pub fn monotonic_ns() -> u64 {
@@ -54,13 +130,25 @@ pub fn control_service_name(prefix: &str) -> String {
 /// A node for this process, with iceoryx2's own logging limited to errors.
 pub fn create_node() -> Result<Node<ipc::Service>, IpcError> {
     set_log_level(LogLevel::Error);
-    Ok(NodeBuilder::new()
+    NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()?)
+        .create::<ipc::Service>()
+        .map_err(|e| IpcError::Node(e.to_string()))
 }
 
 fn service_name(name: &str) -> Result<ServiceName, IpcError> {
-    Ok(ServiceName::new(name)?)
+    ServiceName::new(name).map_err(|e| IpcError::Name {
+        name: name.to_string(),
+        reason: e.to_string(),
+    })
+}
+
+/// The service `name` could not be opened or created.
+fn service_error(name: &str, reason: impl core::fmt::Display) -> IpcError {
+    IpcError::Service {
+        service: name.to_string(),
+        reason: reason.to_string(),
+    }
 }
 
 /// A latest-value stream: history 1, subscriber buffer 1, safe overflow (the newest sample wins).
@@ -68,13 +156,13 @@ fn latest_value<T: core::fmt::Debug + ZeroCopySend>(
     node: &Node<ipc::Service>,
     name: &str,
 ) -> Result<publish_subscribe::PortFactory<ipc::Service, T, ()>, IpcError> {
-    Ok(node
-        .service_builder(&service_name(name)?)
+    node.service_builder(&service_name(name)?)
         .publish_subscribe::<T>()
         .history_size(1)
         .subscriber_max_buffer_size(1)
         .enable_safe_overflow(true)
-        .open_or_create()?)
+        .open_or_create()
+        .map_err(|e| service_error(name, e))
 }
 
 /// The pose service of a tool.
@@ -114,14 +202,15 @@ pub fn mesh_service(
     node: &Node<ipc::Service>,
     prefix: &str,
 ) -> Result<publish_subscribe::PortFactory<ipc::Service, [u8], MeshHeaderV1>, IpcError> {
-    Ok(node
-        .service_builder(&service_name(&mesh_service_name(prefix))?)
+    let name = mesh_service_name(prefix);
+    node.service_builder(&service_name(&name)?)
         .publish_subscribe::<[u8]>()
         .user_header::<MeshHeaderV1>()
         .history_size(0)
         .subscriber_max_buffer_size(MESH_BUFFER)
         .enable_safe_overflow(true)
-        .open_or_create()?)
+        .open_or_create()
+        .map_err(|e| service_error(&name, e))
 }
 
 /// The control service.
@@ -132,8 +221,27 @@ pub fn control_service(
     request_response::PortFactory<ipc::Service, ControlRequestV1, (), ControlResponseV1, ()>,
     IpcError,
 > {
-    Ok(node
-        .service_builder(&service_name(&control_service_name(prefix))?)
+    let name = control_service_name(prefix);
+    node.service_builder(&service_name(&name)?)
         .request_response::<ControlRequestV1, ControlResponseV1>()
-        .open_or_create()?)
+        .open_or_create()
+        .map_err(|e| service_error(&name, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_iceoryx2_refuses_is_reported_with_the_name() {
+        let long = "x".repeat(300);
+        match service_name(&long) {
+            Err(IpcError::Name { name, reason }) => {
+                assert_eq!(name, long);
+                assert!(reason.contains("ExceedsMaximumLength"), "{reason}");
+            }
+            other => panic!("expected a name error, got {other:?}"),
+        }
+        assert!(service_name(&pose_service_name("palpa", "probe")).is_ok());
+    }
 }

@@ -27,8 +27,9 @@ mod remote;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use iceoryx2::prelude::PortFactory;
 use palpa::ipc::payload::{ToolFeedbackV1, ToolPoseV1};
-use palpa::ipc::services::{create_node, feedback_service, pose_service};
+use palpa::ipc::services::{IpcError, create_node, feedback_service, pose_service};
 use palpa::world::{Stage, StepProfile, World};
 use plot::{Progress, Series, histogram, loglog, loglog_slope, machine, percentile};
 use serde_json::json;
@@ -475,10 +476,18 @@ fn latency(args: LatencyArgs) -> Result<()> {
 fn ping_pong(prefix: &str, count: u64) -> Result<Vec<f64>> {
     let node = create_node().map_err(|e| anyhow::anyhow!("{e}"))?;
     let publisher = pose_service(&node, prefix, "probe")
-        .and_then(|s| Ok(s.publisher_builder().create()?))
+        .and_then(|s| {
+            s.publisher_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "publisher", e))
+        })
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let subscriber = feedback_service(&node, prefix, "probe")
-        .and_then(|s| Ok(s.subscriber_builder().create()?))
+        .and_then(|s| {
+            s.subscriber_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "subscriber", e))
+        })
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let send = |seq: u64| -> Result<()> {
         publisher
@@ -535,10 +544,18 @@ fn ping_pong(prefix: &str, count: u64) -> Result<Vec<f64>> {
 fn echo(prefix: &str, timeout: f64) -> Result<()> {
     let node = create_node().map_err(|e| anyhow::anyhow!("{e}"))?;
     let subscriber = pose_service(&node, prefix, "probe")
-        .and_then(|s| Ok(s.subscriber_builder().create()?))
+        .and_then(|s| {
+            s.subscriber_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "subscriber", e))
+        })
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let publisher = feedback_service(&node, prefix, "probe")
-        .and_then(|s| Ok(s.publisher_builder().create()?))
+        .and_then(|s| {
+            s.publisher_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "publisher", e))
+        })
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let until = Instant::now() + Duration::from_secs_f64(timeout);
     while Instant::now() < until {

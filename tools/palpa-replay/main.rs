@@ -206,8 +206,9 @@ fn damage_of(
 const MAX_LOG_TIME_JUMP_NS: u64 = 60_000_000_000;
 
 fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()> {
+    use iceoryx2::prelude::PortFactory;
     use palpa::ipc::payload::ToolFeedbackV1;
-    use palpa::ipc::services::{create_node, feedback_service, mesh_service};
+    use palpa::ipc::services::{IpcError, create_node, feedback_service, mesh_service};
     use palpa::record::proto;
     use palpa::record::recorder::MessageOut;
     use prost::Message;
@@ -219,7 +220,11 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
     let mut feedback = std::collections::BTreeMap::new();
     for tool in &recording.scene.tools {
         let publisher = feedback_service(&node, &args.prefix, tool)
-            .and_then(|f| Ok(f.publisher_builder().create()?))
+            .and_then(|f| {
+                f.publisher_builder()
+                    .create()
+                    .map_err(|e| IpcError::port(f.name(), "publisher", e))
+            })
             .map_err(|e| anyhow!("{e}"))?;
         feedback.insert(format!("/palpa/tool/{tool}/feedback"), publisher);
     }
@@ -237,9 +242,10 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
     }
     let mesh = mesh_service(&node, &args.prefix)
         .and_then(|f| {
-            Ok(f.publisher_builder()
+            f.publisher_builder()
                 .initial_max_slice_len(largest)
-                .create()?)
+                .create()
+                .map_err(|e| IpcError::port(f.name(), "publisher", e))
         })
         .map_err(|e| anyhow!("{e}"))?;
     let live = match &args.live {

@@ -22,10 +22,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Parser;
+use iceoryx2::prelude::PortFactory;
 use iceoryx2::prelude::*;
 use palpa::ipc::payload::{MeshHeaderV1, StatsV1, ToolFeedbackV1, ToolPoseV1, WireV1};
 use palpa::ipc::services::{
-    create_node, feedback_service, mesh_service, pose_service, stats_service,
+    IpcError, create_node, feedback_service, mesh_service, pose_service, stats_service,
 };
 use zenoh::Wait;
 use zenoh::handlers::RingChannel;
@@ -178,10 +179,18 @@ fn run(args: Args) -> Result<()> {
             .wait()
             .map_err(|e| zerr("feedback publisher", e))?;
         let pose_out = pose_service(&node, &args.prefix, tool)
-            .and_then(|s| Ok(s.publisher_builder().create()?))
+            .and_then(|s| {
+                s.publisher_builder()
+                    .create()
+                    .map_err(|e| IpcError::port(s.name(), "publisher", e))
+            })
             .map_err(|e| anyhow!("pose service of {tool}: {e}"))?;
         let feedback_in = feedback_service(&node, &args.prefix, tool)
-            .and_then(|s| Ok(s.subscriber_builder().create()?))
+            .and_then(|s| {
+                s.subscriber_builder()
+                    .create()
+                    .map_err(|e| IpcError::port(s.name(), "subscriber", e))
+            })
             .map_err(|e| anyhow!("feedback service of {tool}: {e}"))?;
         ports.push(ToolPorts {
             pose_in,
@@ -191,14 +200,22 @@ fn run(args: Args) -> Result<()> {
         });
     }
     let stats_in = stats_service(&node, &args.prefix)
-        .and_then(|s| Ok(s.subscriber_builder().create()?))
+        .and_then(|s| {
+            s.subscriber_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "subscriber", e))
+        })
         .map_err(|e| anyhow!("stats service: {e}"))?;
     let stats_out = session
         .declare_publisher(key("stats"))
         .wait()
         .map_err(|e| zerr("stats publisher", e))?;
     let mesh_in = mesh_service(&node, &args.prefix)
-        .and_then(|s| Ok(s.subscriber_builder().create()?))
+        .and_then(|s| {
+            s.subscriber_builder()
+                .create()
+                .map_err(|e| IpcError::port(s.name(), "subscriber", e))
+        })
         .map_err(|e| anyhow!("mesh service: {e}"))?;
     let mesh_out = session
         .declare_publisher(key("display/mesh"))
