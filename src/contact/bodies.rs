@@ -1098,6 +1098,11 @@ fn remember((remembered, dropped): (&mut Room<Remembered>, &mut u32), pair: Reme
 /// Finds and answers collisions between the trajectories of different bodies. Bodies with the same
 /// `group` (the pieces of one transected body, whose caps start where they were cut apart) are not
 /// tested against each other.
+///
+/// Rounds, until one answers nothing: each pair of bodies whose bounds meet
+/// ([`net_body_pair`]), then each body with self-contact on against itself ([`net_self_pairs`]);
+/// after a round with impulses the bounds and lists are made again ([`relist_after_impulses`],
+/// [`relist_self_pairs`]). The last rounds freeze what they find.
 pub fn resolve_body_collisions(
     bodies: &mut [Body],
     group: &[usize],
@@ -1106,12 +1111,7 @@ pub fn resolve_body_collisions(
     dt: f64,
 ) -> BodyContactCounters {
     let mut counters = BodyContactCounters::default();
-    // Last run's marks, read by this tick's response, are cleared whatever this run does.
-    for (marks, marked) in scratch.answered.iter_mut().zip(scratch.marked.iter_mut()) {
-        if std::mem::take(marked) {
-            marks.iter_mut().for_each(|mark| *mark = 0);
-        }
-    }
+    scratch.clear_last_marks();
     let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
     scratch.impulses = 0;
     // Bodies whose surface may not pass through itself, tested whether or not another is near.
@@ -1120,192 +1120,34 @@ pub fn resolve_body_collisions(
         return counters;
     }
     let mut skipping = false;
-    for round in 0..=ROUNDS + FREEZE_ROUNDS {
+    let last = ROUNDS + FREEZE_ROUNDS;
+    for round in 0..=last {
         let freeze = round >= ROUNDS;
-        // The bounds of the first round hold for the later ones as long as they only stop short
-        // (which only shortens trajectories); after a round with impulses they are found again.
         if round == 0 {
-            let any = if prepared == Prepared::Listed {
-                // The response's bounds with no margin, grown by the ends it moved: they hold
-                // every node's trajectory now, so a pair of bodies whose bounds do not meet has no
-                // triangle boxes that meet either.
-                scratch.bounds.clear();
-                scratch.bounds.extend_from_slice(&scratch.tight_bounds);
-                scratch.near.iter_mut().for_each(|n| *n = false);
-                mark_near(group, &scratch.bounds, &mut scratch.near)
-            } else {
-                scratch.find_bounds(bodies, group)
-            };
-            if !any && !self_on {
-                break;
+            match first_round(bodies, group, scratch, (prepared, self_on), &mut counters) {
+                Some(skip) => skipping = skip,
+                None => break,
             }
-            // Room to follow which nodes' collisions the rounds answer (else every round tests
-            // every pair).
-            skipping = true;
-            // (`near` has an entry per body there is; `answered` also has room for the pieces
-            // transections and tears may make.)
-            for (k, answered) in scratch.answered.iter_mut().enumerate() {
-                if scratch.near.get(k) == Some(&true) || SelfPairs::on(bodies, k) {
-                    skipping &= clear_marks(answered, bodies[k].node_count());
-                }
-            }
-        }
-        if round == 0 {
-            // The kept triangle pairs, checked again: the response moved nodes, which may have
-            // left their slack. Later rounds check them again after impulses (below); stops only
-            // shorten trajectories, within the same boxes.
-            scratch.cache.list(
-                bodies,
-                group,
-                (&scratch.bounds, &scratch.near),
-                ListCall::Net,
-                &mut scratch.bvhs,
-                (&mut scratch.near_triangles, &mut scratch.found),
-                &mut counters,
-            );
         }
         scratch.now.begin(bodies);
         let mut answered = 0;
+        let rule = (round, skipping, freeze);
         for i in 0..bodies.len() {
             for j in i + 1..bodies.len() {
-                if group.get(i).is_some_and(|g| group.get(j) == Some(g))
-                    || !scratch.bounds[i].overlaps(&scratch.bounds[j])
-                {
-                    continue;
-                }
-                let pair = i * scratch.cache.slots + j;
-                let listed = scratch.cache.listed[pair];
-                if listed == NOT_LISTED {
-                    continue;
-                }
-                let complete = listed != LISTED_IN_PART;
-                // The kept pairs whose boxes meet this round: the pairs, in the order, of a
-                // traversal of the hierarchies refitted to this round's trajectories.
-                scratch.pairs.clear();
-                let cache = &mut scratch.cache;
-                let (start, end) = cache.pair_ranges[pair];
-                let kept = &cache.pairs[cache.current][start as usize..end as usize];
-                let gaps = &mut cache.pair_gaps[cache.current][start as usize..end as usize];
-                // The two bodies' triangle boxes of this tick lie within their anchor boxes grown
-                // by their excursions from them: when the least gap of the pairs' anchor boxes
-                // exceeds the two excursions (with room for rounding), no boxes meet.
-                let net_tick = cache.net_ticks;
-                // (An excursion is infinite for a body with no anchor that holds.)
-                let anchored = [i, j].map(|k| cache.anchor_excursion[k] <= ANCHOR_SLACK);
-                let anchored_at = [i, j].map(|k| cache.anchored_at[k]);
-                let least = &mut cache.least_gaps[pair];
-                let apart = cache.anchor_excursion[i] + cache.anchor_excursion[j] + GAP_ROUNDING;
-                let held = anchored == [true; 2] && anchored_at == [least.1; 2];
-                if held && least.0 > apart {
-                    continue;
-                }
-                // Both anchors taken this tick: this round's boxes are the anchor boxes, and the
-                // least gap is found with them, and each triangle pair's.
-                let fresh = round == 0 && anchored == [true; 2] && anchored_at == [net_tick; 2];
-                // Else, while they hold, the triangle pairs whose own gap exceeds the excursions
-                // are passed over (not a number: not known, taken).
-                let by_pair_gap = held && !fresh;
-                let (mut least_now, mut unordered) = (f64::INFINITY, false);
-                // (Consecutive pairs often share their first triangle: its box is taken once.)
-                let mut box_a = (u32::MAX, Aabb::empty());
-                for (&(ta, tb), pair_gap) in kept.iter().zip(gaps.iter_mut()) {
-                    if by_pair_gap && *pair_gap > apart {
-                        continue;
-                    }
-                    if ta != box_a.0 {
-                        box_a = (ta, scratch.now.of(i, ta as usize, &bodies[i]));
-                    }
-                    let box_b = scratch.now.of(j, tb as usize, &bodies[j]);
-                    if fresh {
-                        let gap = box_a.1.gap(&box_b);
-                        unordered |= gap.is_nan();
-                        least_now = least_now.min(gap);
-                        *pair_gap = gap;
-                    }
-                    if box_a.1.overlaps(&box_b) {
-                        scratch.pairs.push((ta, tb));
-                    }
-                }
-                if fresh {
-                    // (A gap that is not a number leaves the least one unknown.)
-                    *least = (if unordered { f64::NAN } else { least_now }, net_tick);
-                }
-                counters.candidate_pairs += scratch.pairs.len() as u32;
-                // What the two bodies' nodes move over the tick at most: primitives that start
-                // farther apart do not meet (see `test_primitive`).
-                let most = scratch.max_motion[i] + scratch.max_motion[j] + FILTER_MARGIN;
-                for k in 0..scratch.pairs.len() {
-                    let (ta, tb) = scratch.pairs[k];
-                    answered += test_triangle_pair(
-                        bodies,
-                        scratch,
-                        [(i, ta), (j, tb)],
-                        (most, Vec3::zeros(), obstacles),
-                        (round, skipping, freeze || !complete, false),
-                        dt,
-                    );
-                }
+                answered += net_body_pair(
+                    bodies,
+                    (group, obstacles),
+                    scratch,
+                    [i, j],
+                    rule,
+                    dt,
+                    &mut counters,
+                );
             }
         }
-        // Each body with self-contact on against itself: its pairs (listed again at the first
-        // round where its nodes left their slack) whose boxes meet this round.
         for k in 0..bodies.len() {
-            if !SelfPairs::on(bodies, k) {
-                continue;
-            }
-            if round == 0 {
-                if !scratch
-                    .self_pairs
-                    .update(k, &bodies[k], &mut scratch.bvhs[k])
-                {
-                    counters.overflows += 1;
-                }
-            } else {
-                scratch
-                    .self_pairs
-                    .bend_again(k, &bodies[k], &scratch.answered[k], round);
-            }
-            let complete = scratch.self_pairs.complete(k);
-            // (Listed again after the round before: every pair, as in a first round.)
-            let skipping = skipping && !scratch.self_pairs.retest(k);
-            let far = scratch.self_pairs.pairs(k).len();
-            for p in 0..far + scratch.self_pairs.bent(k).len() {
-                let (ta, tb) = if p < far {
-                    scratch.self_pairs.pairs(k)[p]
-                } else {
-                    scratch.self_pairs.bent(k)[p - far]
-                };
-                // After the first round, a pair none of whose nodes moved since the round before
-                // is passed over (each of its tests would be: see `worth_testing`).
-                let triangles = &bodies[k].surface.triangles;
-                let (a, b) = (triangles[ta as usize], triangles[tb as usize]);
-                if !worth_testing_pair(&scratch.answered[k], [a, b], round, skipping) {
-                    continue;
-                }
-                let box_a = scratch.now.of(k, ta as usize, &bodies[k]);
-                if !box_a.overlaps(&scratch.now.of(k, tb as usize, &bodies[k])) {
-                    continue;
-                }
-                counters.candidate_pairs += 1;
-                // What the two may close by: twice the most either's nodes move apart from the
-                // body's nodes' mean (a body falling or sliding as a whole closes nothing).
-                let nodes = [a[0], a[1], a[2], b[0], b[1], b[2]];
-                let motion = scratch.self_pairs.relative_motion(k, &bodies[k], &nodes);
-                // Every vertex and side of the two triangles, not only those each owns: the pair
-                // of a vertex's (side's) owner and this face may be a near pair not bent, or a far
-                // pair not listed, where this one is.
-                answered += test_triangle_pair(
-                    bodies,
-                    scratch,
-                    [(k, ta), (k, tb)],
-                    (
-                        2.0 * motion + FILTER_MARGIN,
-                        scratch.self_pairs.shift(k),
-                        obstacles,
-                    ),
-                    (round, skipping, freeze || !complete, true),
-                    dt,
-                );
+            if SelfPairs::on(bodies, k) {
+                answered += net_self_pairs(bodies, obstacles, scratch, k, rule, dt, &mut counters);
             }
         }
         counters.collisions += answered;
@@ -1315,51 +1157,14 @@ pub fn resolve_body_collisions(
         if answered == 0 {
             break;
         }
-        // Impulses may have moved ends beyond the trajectories the round's bounds, motion bounds
-        // and lists were made for (stopping short only shortens them): all made again for the
-        // next round. The pairs the next round passes over are still those none of whose nodes
-        // moved: their trajectories are the first round's, which had sound lists.
         let impulses = std::mem::take(&mut scratch.impulses);
         counters.impulses += impulses;
-        if impulses > 0 && round < ROUNDS + FREEZE_ROUNDS {
-            counters.relisted_rounds += 1;
-            if scratch.find_bounds(bodies, group) {
-                for (k, answered) in scratch.answered.iter_mut().enumerate() {
-                    // A body near another only now: none of its nodes was answered yet.
-                    let n = bodies.get(k).map_or(0, Body::node_count);
-                    if scratch.near.get(k) == Some(&true) && answered.len() != n {
-                        skipping &= clear_marks(answered, n);
-                    }
-                }
-                scratch.cache.list(
-                    bodies,
-                    group,
-                    (&scratch.bounds, &scratch.near),
-                    ListCall::NetAgain,
-                    &mut scratch.bvhs,
-                    (&mut scratch.near_triangles, &mut scratch.found),
-                    &mut counters,
-                );
-            }
+        if impulses > 0 && round < last {
+            relist_after_impulses(bodies, group, scratch, &mut skipping, &mut counters);
         }
-        // A body whose stops this round took a node's end out of its far listing's slack: listed
-        // again, and all its pairs tested in the next round (after the last round there is none:
-        // counted below).
-        for k in 0..bodies.len() {
-            if !SelfPairs::on(bodies, k) || round == ROUNDS + FREEZE_ROUNDS {
-                continue;
-            }
-            if let Some(complete) = scratch.self_pairs.update_after_round(
-                k,
-                &bodies[k],
-                &mut scratch.bvhs[k],
-                (&scratch.answered[k], round),
-            ) {
-                counters.self_listed_again += 1;
-                if !complete {
-                    counters.overflows += 1;
-                }
-            }
+        // (After the last round there is none to list again for: counted below.)
+        if round < last {
+            relist_self_pairs(bodies, scratch, round, &mut counters);
         }
     }
     // Checked, where the net moved anything: the far listings hold for the trajectories as they
@@ -1373,6 +1178,289 @@ pub fn resolve_body_collisions(
         }
     }
     counters
+}
+
+impl BodyContactScratch {
+    /// Clears the collision net's last run's marks (read by this tick's response), whatever this
+    /// run does.
+    fn clear_last_marks(&mut self) {
+        for (marks, marked) in self.answered.iter_mut().zip(self.marked.iter_mut()) {
+            if std::mem::take(marked) {
+                marks.iter_mut().for_each(|mark| *mark = 0);
+            }
+        }
+    }
+}
+
+/// The net's first round's bounds, marks and kept triangle pairs; `None` when no two bodies are
+/// near and none has self-contact on (nothing to test), else whether the rounds can pass over the
+/// pairs none of whose nodes moved (room to follow which nodes' collisions they answer).
+fn first_round(
+    bodies: &[Body],
+    group: &[usize],
+    scratch: &mut BodyContactScratch,
+    (prepared, self_on): (Prepared, bool),
+    counters: &mut BodyContactCounters,
+) -> Option<bool> {
+    // The bounds of the first round hold for the later ones as long as they only stop short
+    // (which only shortens trajectories); after a round with impulses they are found again.
+    let any = if prepared == Prepared::Listed {
+        // The response's bounds with no margin, grown by the ends it moved: they hold every
+        // node's trajectory now, so a pair of bodies whose bounds do not meet has no triangle
+        // boxes that meet either.
+        scratch.bounds.clear();
+        scratch.bounds.extend_from_slice(&scratch.tight_bounds);
+        scratch.near.iter_mut().for_each(|n| *n = false);
+        mark_near(group, &scratch.bounds, &mut scratch.near)
+    } else {
+        scratch.find_bounds(bodies, group)
+    };
+    if !any && !self_on {
+        return None;
+    }
+    let mut skipping = true;
+    // (`near` has an entry per body there is; `answered` also has room for the pieces
+    // transections and tears may make.)
+    for (k, answered) in scratch.answered.iter_mut().enumerate() {
+        if scratch.near.get(k) == Some(&true) || SelfPairs::on(bodies, k) {
+            skipping &= clear_marks(answered, bodies[k].node_count());
+        }
+    }
+    // The kept triangle pairs, checked again: the response moved nodes, which may have left their
+    // slack. Later rounds check them again after impulses (`relist_after_impulses`); stops only
+    // shorten trajectories, within the same boxes.
+    scratch.cache.list(
+        bodies,
+        group,
+        (&scratch.bounds, &scratch.near),
+        ListCall::Net,
+        &mut scratch.bvhs,
+        (&mut scratch.near_triangles, &mut scratch.found),
+        counters,
+    );
+    Some(skipping)
+}
+
+/// One round of the net for bodies `i` and `j` (`i < j`): the kept triangle pairs whose boxes meet
+/// this round, each tested; returns the collisions answered. `rule`: the round, whether pairs none
+/// of whose nodes moved are passed over, and whether what is found is frozen.
+fn net_body_pair(
+    bodies: &mut [Body],
+    (group, obstacles): (&[usize], &[Obstacle]),
+    scratch: &mut BodyContactScratch,
+    [i, j]: [usize; 2],
+    (round, skipping, freeze): (usize, bool, bool),
+    dt: f64,
+    counters: &mut BodyContactCounters,
+) -> u32 {
+    if group.get(i).is_some_and(|g| group.get(j) == Some(g))
+        || !scratch.bounds[i].overlaps(&scratch.bounds[j])
+    {
+        return 0;
+    }
+    let pair = i * scratch.cache.slots + j;
+    let listed = scratch.cache.listed[pair];
+    if listed == NOT_LISTED {
+        return 0;
+    }
+    let complete = listed != LISTED_IN_PART;
+    // The kept pairs whose boxes meet this round: the pairs, in the order, of a traversal of the
+    // hierarchies refitted to this round's trajectories.
+    scratch.pairs.clear();
+    let cache = &mut scratch.cache;
+    let (start, end) = cache.pair_ranges[pair];
+    let kept = &cache.pairs[cache.current][start as usize..end as usize];
+    let gaps = &mut cache.pair_gaps[cache.current][start as usize..end as usize];
+    // The two bodies' triangle boxes of this tick lie within their anchor boxes grown by their
+    // excursions from them: when the least gap of the pairs' anchor boxes exceeds the two
+    // excursions (with room for rounding), no boxes meet.
+    let net_tick = cache.net_ticks;
+    // (An excursion is infinite for a body with no anchor that holds.)
+    let anchored = [i, j].map(|k| cache.anchor_excursion[k] <= ANCHOR_SLACK);
+    let anchored_at = [i, j].map(|k| cache.anchored_at[k]);
+    let least = &mut cache.least_gaps[pair];
+    let apart = cache.anchor_excursion[i] + cache.anchor_excursion[j] + GAP_ROUNDING;
+    let held = anchored == [true; 2] && anchored_at == [least.1; 2];
+    if held && least.0 > apart {
+        return 0;
+    }
+    // Both anchors taken this tick: this round's boxes are the anchor boxes, and the least gap is
+    // found with them, and each triangle pair's.
+    let fresh = round == 0 && anchored == [true; 2] && anchored_at == [net_tick; 2];
+    // Else, while they hold, the triangle pairs whose own gap exceeds the excursions are passed
+    // over (not a number: not known, taken).
+    let by_pair_gap = held && !fresh;
+    let (mut least_now, mut unordered) = (f64::INFINITY, false);
+    // (Consecutive pairs often share their first triangle: its box is taken once.)
+    let mut box_a = (u32::MAX, Aabb::empty());
+    for (&(ta, tb), pair_gap) in kept.iter().zip(gaps.iter_mut()) {
+        if by_pair_gap && *pair_gap > apart {
+            continue;
+        }
+        if ta != box_a.0 {
+            box_a = (ta, scratch.now.of(i, ta as usize, &bodies[i]));
+        }
+        let box_b = scratch.now.of(j, tb as usize, &bodies[j]);
+        if fresh {
+            let gap = box_a.1.gap(&box_b);
+            unordered |= gap.is_nan();
+            least_now = least_now.min(gap);
+            *pair_gap = gap;
+        }
+        if box_a.1.overlaps(&box_b) {
+            scratch.pairs.push((ta, tb));
+        }
+    }
+    if fresh {
+        // (A gap that is not a number leaves the least one unknown.)
+        *least = (if unordered { f64::NAN } else { least_now }, net_tick);
+    }
+    counters.candidate_pairs += scratch.pairs.len() as u32;
+    // What the two bodies' nodes move over the tick at most: primitives that start farther apart
+    // do not meet (see `test_primitive`).
+    let most = scratch.max_motion[i] + scratch.max_motion[j] + FILTER_MARGIN;
+    let mut answered = 0;
+    for k in 0..scratch.pairs.len() {
+        let (ta, tb) = scratch.pairs[k];
+        answered += test_triangle_pair(
+            bodies,
+            scratch,
+            [(i, ta), (j, tb)],
+            (most, Vec3::zeros(), obstacles),
+            (round, skipping, freeze || !complete, false),
+            dt,
+        );
+    }
+    answered
+}
+
+/// One round of the net for body `k` (self-contact on) against itself: its pairs (listed again at
+/// the first round where its nodes left their slack) whose boxes meet this round, each tested;
+/// returns the collisions answered. `rule` as for [`net_body_pair`].
+fn net_self_pairs(
+    bodies: &mut [Body],
+    obstacles: &[Obstacle],
+    scratch: &mut BodyContactScratch,
+    k: usize,
+    (round, skipping, freeze): (usize, bool, bool),
+    dt: f64,
+    counters: &mut BodyContactCounters,
+) -> u32 {
+    if round == 0 {
+        if !scratch
+            .self_pairs
+            .update(k, &bodies[k], &mut scratch.bvhs[k])
+        {
+            counters.overflows += 1;
+        }
+    } else {
+        scratch
+            .self_pairs
+            .bend_again(k, &bodies[k], &scratch.answered[k], round);
+    }
+    let complete = scratch.self_pairs.complete(k);
+    // (Listed again after the round before: every pair, as in a first round.)
+    let skipping = skipping && !scratch.self_pairs.retest(k);
+    let far = scratch.self_pairs.pairs(k).len();
+    let mut answered = 0;
+    for p in 0..far + scratch.self_pairs.bent(k).len() {
+        let (ta, tb) = if p < far {
+            scratch.self_pairs.pairs(k)[p]
+        } else {
+            scratch.self_pairs.bent(k)[p - far]
+        };
+        // After the first round, a pair none of whose nodes moved since the round before is
+        // passed over (each of its tests would be: see `worth_testing`).
+        let triangles = &bodies[k].surface.triangles;
+        let (a, b) = (triangles[ta as usize], triangles[tb as usize]);
+        if !worth_testing_pair(&scratch.answered[k], [a, b], round, skipping) {
+            continue;
+        }
+        let box_a = scratch.now.of(k, ta as usize, &bodies[k]);
+        if !box_a.overlaps(&scratch.now.of(k, tb as usize, &bodies[k])) {
+            continue;
+        }
+        counters.candidate_pairs += 1;
+        // What the two may close by: twice the most either's nodes move apart from the body's
+        // nodes' mean (a body falling or sliding as a whole closes nothing).
+        let nodes = [a[0], a[1], a[2], b[0], b[1], b[2]];
+        let motion = scratch.self_pairs.relative_motion(k, &bodies[k], &nodes);
+        // Every vertex and side of the two triangles, not only those each owns: the pair of a
+        // vertex's (side's) owner and this face may be a near pair not bent, or a far pair not
+        // listed, where this one is.
+        answered += test_triangle_pair(
+            bodies,
+            scratch,
+            [(k, ta), (k, tb)],
+            (
+                2.0 * motion + FILTER_MARGIN,
+                scratch.self_pairs.shift(k),
+                obstacles,
+            ),
+            (round, skipping, freeze || !complete, true),
+            dt,
+        );
+    }
+    answered
+}
+
+/// After a round with impulses, which may have moved ends beyond the trajectories the round's
+/// bounds, motion bounds and lists were made for (stopping short only shortens them): all made
+/// again for the next round. The pairs the next round passes over are still those none of whose
+/// nodes moved: their trajectories are the first round's, which had sound lists.
+fn relist_after_impulses(
+    bodies: &[Body],
+    group: &[usize],
+    scratch: &mut BodyContactScratch,
+    skipping: &mut bool,
+    counters: &mut BodyContactCounters,
+) {
+    counters.relisted_rounds += 1;
+    if !scratch.find_bounds(bodies, group) {
+        return;
+    }
+    for (k, answered) in scratch.answered.iter_mut().enumerate() {
+        // A body near another only now: none of its nodes was answered yet.
+        let n = bodies.get(k).map_or(0, Body::node_count);
+        if scratch.near.get(k) == Some(&true) && answered.len() != n {
+            *skipping &= clear_marks(answered, n);
+        }
+    }
+    scratch.cache.list(
+        bodies,
+        group,
+        (&scratch.bounds, &scratch.near),
+        ListCall::NetAgain,
+        &mut scratch.bvhs,
+        (&mut scratch.near_triangles, &mut scratch.found),
+        counters,
+    );
+}
+
+/// Each body with self-contact on whose stops in `round` took a node's end out of its far
+/// listing's slack: listed again, and all its pairs tested in the next round.
+fn relist_self_pairs(
+    bodies: &[Body],
+    scratch: &mut BodyContactScratch,
+    round: usize,
+    counters: &mut BodyContactCounters,
+) {
+    for k in 0..bodies.len() {
+        if !SelfPairs::on(bodies, k) {
+            continue;
+        }
+        if let Some(complete) = scratch.self_pairs.update_after_round(
+            k,
+            &bodies[k],
+            &mut scratch.bvhs[k],
+            (&scratch.answered[k], round),
+        ) {
+            counters.self_listed_again += 1;
+            if !complete {
+                counters.overflows += 1;
+            }
+        }
+    }
 }
 
 /// Tests triangle `ta` of body `i` against `tb` of body `j` (`i` may be `j`: two triangles of one
