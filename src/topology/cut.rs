@@ -641,28 +641,9 @@ impl Cutter {
         end: [Vec3; 2],
         extent: Option<&NodeExtent>,
     ) -> CutStep {
-        let node_bounds = extent.map(|e| &e.bounds);
         let mut step = CutStep::default();
         self.new_path_from = self.path_edges.len();
-        // A blade that jumped (its segment does not start where the last step left it: a pose
-        // glitch, or a blade set down elsewhere) starts a new cut: joining its old tips would open
-        // tissue it never swept.
-        if let Some(last) = self.last_end.get_mut(tool) {
-            let jumped = last.is_some_and(|l| {
-                (l[0] - start[0]).norm().max((l[1] - start[1]).norm()) > self.settings.tolerance
-            });
-            if jumped && let Some(tips) = self.tips.get_mut(tool) {
-                tips.clear();
-            }
-            *last = Some(end);
-        }
-        // The quad reaches back over a quarter of the tick's motion, into the last one's: the body
-        // moves too, and an edge whose crossing sat on the line between two ticks' quads could
-        // slip back out of both (the crossings of the last tick are split or snapped, so only
-        // snaps onto the path can come again).
-        let back = |s: Vec3, e: Vec3| s - (e - s) * BACK_REACH;
-        let start = [back(start[0], end[0]), back(start[1], end[1])];
-        let quad = [start[0], start[1], end[1], end[0]];
+        let quad = self.swept_quad(tool, start, end);
         let area = 0.5
             * ((quad[1] - quad[0]).cross(&(quad[2] - quad[0])).norm()
                 + (quad[2] - quad[0]).cross(&(quad[3] - quad[0])).norm());
@@ -672,54 +653,136 @@ impl Cutter {
         self.nodes_at_start = n;
         if self.node_stamp.len() < n {
             // Cannot happen within the reserved room; refuse rather than grow on the tick.
-            step.refused = true;
-            self.counters.refused += 1;
-            return step;
+            return self.refuse(step);
         }
-        let longest = self.longest;
         let mut bounds = Aabb::empty();
         for p in &quad {
             bounds.include(p);
         }
-        bounds.inflate(self.tolerance(longest));
+        bounds.inflate(self.tolerance(self.longest));
         // The blade's box misses the box of the nodes: every node lies beyond one of its sides, as
         // the pass below would find (none inside, a side they all share), so the step stops here.
-        if node_bounds.is_some_and(|b| !b.overlaps(&bounds)) {
+        if extent.is_some_and(|e| !e.bounds.overlaps(&bounds)) {
             self.counters.away_ticks += 1;
             return step;
         }
+        let local = self.springs_near(body, &bounds, extent);
+        let (shared_sides, inside) = self.sides(body, &bounds, local, stamp);
+        // Only a blade that pressed through a resistance asks whether it is still near the body.
+        if self.settings.resistance > 0.0 {
+            step.nodes_near = inside;
+        }
+        if area <= 1e-14 * size * size.max(1e-9) || size <= 0.0 {
+            return step;
+        }
+        // Every node on one side of the box: no edge crosses the sweep, and no crack tip (a node)
+        // is within the tolerance of it, so the step has nothing to do.
+        if !local && shared_sides != 0 {
+            return step;
+        }
+        // 1. Crossings.
+        if !self.find_crossings(body, &quad, local) {
+            return self.refuse(step);
+        }
+        step.crossings = self.crossings.len() as u32;
+        if self.crossings.is_empty() && !self.fronts_meet(body, tool, &quad) {
+            return step;
+        }
+        // 2. Templates, with quality splits.
+        self.plan(body, tool, stamp, &quad);
+        if !self.room_for_plan(body, n) {
+            return self.refuse(step);
+        }
+        // Create the split nodes and split their springs.
+        for c in 0..self.crossings.len() {
+            if matches!(self.crossings[c].choice, Choice::Split) {
+                self.split_edge(body, c);
+                step.splits += 1;
+            }
+        }
+        // Rewrite the triangles.
+        let prestress = self.settings.prestress;
+        self.created.clear();
+        for i in 0..self.affected.len() {
+            let a = self.affected[i];
+            self.apply_template(body, &a, prestress);
+        }
+        // 3. Path edges, and tips for the next step.
+        self.lay_path();
+        // Edge flips where a created triangle is below the quality bound; the figures of quality.
+        self.flip_for_quality(body, prestress);
+        self.count_created_quality(body);
+        self.collect_tips(tool);
+        // 4. Open the surface along the path.
+        self.open_path(body, &mut step);
+        step
+    }
+
+    /// `step`, refused and counted.
+    fn refuse(&mut self, mut step: CutStep) -> CutStep {
+        step.refused = true;
+        self.counters.refused += 1;
+        step
+    }
+
+    /// The quad the blade of `tool` swept from its segment `start` to `end`, reaching back over a
+    /// quarter of the tick's motion into the last one's: the body moves too, and an edge whose
+    /// crossing sat on the line between two ticks' quads could slip back out of both (the
+    /// crossings of the last tick are split or snapped, so only snaps onto the path can come
+    /// again). A blade that jumped (its segment does not start where the last step left it: a
+    /// pose glitch, or a blade set down elsewhere) starts a new cut: joining its old tips would
+    /// open tissue it never swept.
+    fn swept_quad(&mut self, tool: usize, start: [Vec3; 2], end: [Vec3; 2]) -> [Vec3; 4] {
+        if let Some(last) = self.last_end.get_mut(tool) {
+            let jumped = last.is_some_and(|l| {
+                (l[0] - start[0]).norm().max((l[1] - start[1]).norm()) > self.settings.tolerance
+            });
+            if jumped && let Some(tips) = self.tips.get_mut(tool) {
+                tips.clear();
+            }
+            *last = Some(end);
+        }
+        let back = |s: Vec3, e: Vec3| s - (e - s) * BACK_REACH;
+        let start = [back(start[0], end[0]), back(start[1], end[1])];
+        [start[0], start[1], end[1], end[0]]
+    }
+
+    /// Whether the springs to look at are those near the blade's box `bounds` in the rest frame
+    /// (collected into the index's `found`: with `extent`'s frame and an index in step with the
+    /// body), rather than all of them.
+    fn springs_near(&mut self, body: &Body, bounds: &Aabb, extent: Option<&NodeExtent>) -> bool {
         let indexed = self.sync_index(body);
-        let frame = extent.and_then(|e| e.frame).filter(|_| indexed);
-        let x = &body.surface.position_in_world;
-        // The springs to look at: near the blade in the rest frame, or all of them.
-        let local = if let Some((rotation, origin, reach)) = frame {
-            let mut rest = Aabb::empty();
-            for corner in 0..8 {
-                let c = Vec3::from([0, 1, 2].map(|k| {
-                    if (corner >> k) & 1 == 0 {
-                        bounds.min[k]
-                    } else {
-                        bounds.max[k]
-                    }
-                }));
-                rest.include(&(rotation.transpose() * (c - origin)));
-            }
-            // Grown by the reach, and for the rounding of the placements (here and of the homologues).
-            rest.inflate(reach + 1e-9 * (1.0 + rest.max.abs().max() + rest.min.abs().max()));
-            if let Some(index) = self.index.as_mut() {
-                let mark = index.begin();
-                index.collect_edges(body, &rest, mark, |_, _, _| true);
-                index.finish();
-            }
-            self.counters.local_steps += 1;
-            true
-        } else {
+        let Some((rotation, origin, reach)) = extent.and_then(|e| e.frame).filter(|_| indexed)
+        else {
             self.counters.passes += 1;
-            false
+            return false;
         };
-        // Each node's side of the blade's box, the sides they all share and how many are in it:
-        // over the ends of the springs near the blade, or over every node. A blade away from the
-        // body stops here (the springs, three times as many as the nodes, are not looked at).
+        let mut rest = Aabb::empty();
+        for corner in 0..8 {
+            let c = Vec3::from([0, 1, 2].map(|k| {
+                if (corner >> k) & 1 == 0 {
+                    bounds.min[k]
+                } else {
+                    bounds.max[k]
+                }
+            }));
+            rest.include(&(rotation.transpose() * (c - origin)));
+        }
+        // Grown by the reach, and for the rounding of the placements (here and of the homologues).
+        rest.inflate(reach + 1e-9 * (1.0 + rest.max.abs().max() + rest.min.abs().max()));
+        if let Some(index) = self.index.as_mut() {
+            let mark = index.begin();
+            index.collect_edges(body, &rest, mark, |_, _, _| true);
+            index.finish();
+        }
+        self.counters.local_steps += 1;
+        true
+    }
+
+    /// Each node's side of the blade's box (`node_side`), the sides they all share and how many
+    /// are in it: over the ends of the springs near the blade (`local`), or over every node.
+    fn sides(&mut self, body: &Body, bounds: &Aabb, local: bool, stamp: u32) -> (u8, u32) {
+        let x = &body.surface.position_in_world;
         let mut shared_sides = u8::MAX;
         let mut inside = 0u32;
         if local {
@@ -737,30 +800,25 @@ impl Cutter {
                 }
             }
             // Every node with a side of 0 is an end of a spring found (no node is without one).
-            // Whether they all share a side is not known: the crossings below are looked for
-            // among the springs found, which is what a shared side would have spared.
+            // Whether they all share a side is not known: the crossings are looked for among the
+            // springs found, which is what a shared side would have spared.
         } else {
+            let n = body.node_count();
             for (side, p) in self.node_side[..n].iter_mut().zip(&x[..n]) {
                 *side = bounds.outcode(p, p);
                 shared_sides &= *side;
                 inside += u32::from(*side == 0);
             }
         }
-        // Only a blade that pressed through a resistance asks whether it is still near the body.
-        if self.settings.resistance > 0.0 {
-            step.nodes_near = inside;
-        }
-        if area <= 1e-14 * size * size.max(1e-9) || size <= 0.0 {
-            return step;
-        }
-        // Every node on one side of the box: no edge crosses the sweep, and no crack tip (a node)
-        // is within the tolerance of it, so the step has nothing to do.
-        if !local && shared_sides != 0 {
-            return step;
-        }
-        // 1. Crossings.
+        (shared_sides, inside)
+    }
+
+    /// The springs (near the blade, with `local`, or all) that cross `quad`, into `crossings`,
+    /// each to be split or snapped to an end; false when there are more than the room for them.
+    fn find_crossings(&mut self, body: &Body, quad: &[Vec3; 4], local: bool) -> bool {
         self.crossings.clear();
         self.split_rest.clear();
+        let x = &body.surface.position_in_world;
         let edges = &body.edges;
         let count = if local {
             self.index.as_ref().expect("indexed").found.len()
@@ -774,7 +832,7 @@ impl Cutter {
                 i
             };
             let (a, b) = (edges.a[k], edges.b[k]);
-            // The same as `bounds.outcode(xa, xb) != 0`, from the codes of the pass above.
+            // The same as `bounds.outcode(xa, xb) != 0`, from the codes of `sides`.
             if self.node_side[a as usize] & self.node_side[b as usize] != 0 {
                 continue;
             }
@@ -785,12 +843,10 @@ impl Cutter {
                 continue;
             };
             if self.crossings.len() == MAX_CROSSINGS {
-                step.refused = true;
-                self.counters.refused += 1;
-                return step;
+                return false;
             }
             let tol = self.tolerance(edges.rest_length[k]);
-            let (da, db) = (quad_distance(&xa, &quad), quad_distance(&xb, &quad));
+            let (da, db) = (quad_distance(&xa, quad), quad_distance(&xb, quad));
             // A crossing within MIN_SPLIT_FRACTION of an end snaps to it whatever the distance:
             // only an edge stretched far past its rest length (a body diverging before its
             // guard acts) puts the end out of the tolerance there, and a split so near an end
@@ -816,24 +872,27 @@ impl Cutter {
                 on_path: true,
             });
         }
-        step.crossings = self.crossings.len() as u32;
-        if self.crossings.is_empty() && !self.fronts_meet(body, tool, &quad) {
-            return step;
-        }
+        true
+    }
+
+    /// The plan of the step from its crossings: snaps along edges, the numbered splits, the
+    /// affected triangles and their templates, with quality splits, snaps and slides over up to
+    /// [`QUALITY_ROUNDS`] rounds; then the splits that serve nothing dropped and the quality
+    /// splits the path should go through promoted.
+    fn plan(&mut self, body: &Body, tool: usize, stamp: u32, quad: &[Vec3; 4]) {
         self.snap_along_edges(tool);
         // Number the planned split nodes; the triangles around the crossings and tips.
         self.number_splits(body);
         self.select_candidates(body, tool, stamp, 0);
-        // 2. Templates, with quality splits, up to three rounds.
         for _round in 0..QUALITY_ROUNDS {
-            self.collect_affected(body, tool, stamp, &quad);
-            if self.snap_for_quality(body, &quad) {
+            self.collect_affected(body, tool, stamp, quad);
+            if self.snap_for_quality(body, quad) {
                 self.snap_along_edges(tool);
                 self.number_splits(body);
-                self.collect_affected(body, tool, stamp, &quad);
+                self.collect_affected(body, tool, stamp, quad);
             }
-            if self.slide_splits(body, &quad) {
-                self.collect_affected(body, tool, stamp, &quad);
+            if self.slide_splits(body, quad) {
+                self.collect_affected(body, tool, stamp, quad);
             }
             let before = self.crossings.len();
             if !self.add_quality_splits(body) {
@@ -842,17 +901,21 @@ impl Cutter {
             self.select_candidates(body, tool, stamp, before);
             self.number_splits(body);
         }
-        self.collect_affected(body, tool, stamp, &quad);
+        self.collect_affected(body, tool, stamp, quad);
         // A split made for quality in an earlier round may serve nothing any more (the path
         // crossing that called for it snapped since) and only divide a corner.
         while self.drop_needless_split(body) {
             self.number_splits(body);
-            self.collect_affected(body, tool, stamp, &quad);
+            self.collect_affected(body, tool, stamp, quad);
         }
         // A path leaving a corner close along one of its edges, with a quality split on that edge
         // near the blade: the path goes through the split instead.
-        self.promote_quality_splits(body, &quad);
-        // Room: nodes for splits and copies, triangles and edges for the templates and lips.
+        self.promote_quality_splits(body, quad);
+    }
+
+    /// Whether `body` (of `n` nodes at the step's start) and the scratch have room for the plan:
+    /// nodes for splits and copies, triangles and edges for the templates and lips.
+    fn room_for_plan(&self, body: &Body, n: usize) -> bool {
         let splits = self
             .crossings
             .iter()
@@ -867,30 +930,14 @@ impl Cutter {
         let need_nodes = splits + 2 * path + 2;
         let need_edges = splits + new_triangles + 2 * path + 2;
         let limits = body.limits;
-        if n + need_nodes > limits.nodes
-            || body.surface.triangles.len() + new_triangles > limits.triangles
-            || body.edges.len() + need_edges > limits.edges
-            || n + need_nodes > self.node_stamp.len()
-        {
-            step.refused = true;
-            self.counters.refused += 1;
-            return step;
-        }
-        // Create the split nodes and split their springs.
-        for c in 0..self.crossings.len() {
-            if matches!(self.crossings[c].choice, Choice::Split) {
-                self.split_edge(body, c);
-                step.splits += 1;
-            }
-        }
-        // Rewrite the triangles.
-        let prestress = self.settings.prestress;
-        self.created.clear();
-        for i in 0..self.affected.len() {
-            let a = self.affected[i];
-            self.apply_template(body, &a, prestress);
-        }
-        // 3. Path edges, and tips for the next step.
+        n + need_nodes <= limits.nodes
+            && body.surface.triangles.len() + new_triangles <= limits.triangles
+            && body.edges.len() + need_edges <= limits.edges
+            && n + need_nodes <= self.node_stamp.len()
+    }
+
+    /// The path's edges: those still pending from earlier steps, then this step's, each once.
+    fn lay_path(&mut self) {
         self.path_edges.clear();
         self.path_edges.extend_from_slice(&self.pending);
         self.new_path_from = self.pending.len();
@@ -902,8 +949,11 @@ impl Cutter {
                 }
             }
         }
-        // Edge flips where a created triangle is below the quality bound; the figures of quality.
-        self.flip_for_quality(body, prestress);
+    }
+
+    /// The smallest corner of the triangles the step created (in the rest shape), and the counts
+    /// of those below the quality bound that inherited their parent's corner or missed it.
+    fn count_created_quality(&mut self, body: &Body) {
         let h = &body.surface.homologue_in_body;
         for &(t, floor) in &self.created {
             let angle = min_angle_deg(&body.surface.triangles[t as usize].map(|v| h[v as usize]));
@@ -918,10 +968,6 @@ impl Cutter {
                 self.counters.quality_misses += 1;
             }
         }
-        self.collect_tips(tool);
-        // 4. Open the surface along the path.
-        self.open_path(body, &mut step);
-        step
     }
 
     /// Opens `path_edges` (see [`Cutter::open`]), keeps what cannot open yet pending, marks the path
