@@ -5,6 +5,7 @@
 //! by a crash is read up to its last complete chunk, without a summary section.
 
 use std::collections::BTreeMap;
+use std::convert::Infallible;
 use std::path::{Path, PathBuf};
 
 use prost::Message;
@@ -357,134 +358,234 @@ pub fn verify(
     work_dir: &Path,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<VerifyReport, VerifyError> {
-    let session = &recording.scene;
-    check_session(session)?;
-    let scene = rebuild_scene(recording, work_dir)?;
-    if scene.world.dt.to_bits() != session.dt.to_bits() {
-        return Err(VerifyError::Session(format!(
-            "the scene steps at dt = {} s but the session was recorded at {} s",
-            scene.world.dt, session.dt
-        )));
-    }
-    let mut world = World::from_scene(&scene);
-    let mut meshes = MeshSchedule::new(&world, session.display_rate_hz, session.keyframe_every_s);
-    let serve_mode = session.mode == "serve";
-    let tool_index: BTreeMap<String, usize> = world
-        .tools
-        .iter()
-        .enumerate()
-        .map(|(i, t)| (t.name.clone(), i))
-        .collect();
-    // Every tool is driven by the recorded poses; a scripted tool keeps its starting pose and state.
-    let drive = |world: &mut World| {
-        for tool in &mut world.tools {
-            tool.input = ToolInput::Ipc;
-        }
-    };
-    drive(&mut world);
-
-    // Inputs and events by tick, outputs in order.
-    let mut inputs: BTreeMap<u64, Vec<proto::ToolInput>> = BTreeMap::new();
-    let mut events: BTreeMap<u64, Vec<proto::Event>> = BTreeMap::new();
-    let mut outputs: Vec<&RecordedMessage> = Vec::new();
-    for m in &recording.messages {
-        if m.topic.ends_with("/input") {
-            let i: proto::ToolInput = decode_message(m)?;
-            check_input(&i).map_err(|reason| MessageError::new(m, reason))?;
-            inputs.entry(i.tick).or_default().push(i);
-        } else if m.topic == "/palpa/events" {
-            let e: proto::Event = decode_message(m)?;
-            events.entry(e.tick).or_default().push(e);
-        } else if m.topic.ends_with("/feedback") || m.topic.starts_with("/palpa/mesh/") {
-            outputs.push(m);
-        }
-    }
-    let tick_of = |m: &RecordedMessage| tick_at(m.log_time, session.dt);
-    let last = outputs.last().map_or(0, |m| tick_of(m));
-    // Every body sends a mesh message every `display_every` ticks and every tool a feedback message
-    // every tick, so the outputs of a session of `last` ticks are at least `last / display_every`:
-    // a last tick beyond that is a damaged log time, which would otherwise be replayed for ages.
-    let display_every = meshes.display_every();
-    let covered = (outputs.len() as u64 + 1).saturating_mul(display_every);
-    if last > covered {
-        return Err(VerifyError::Session(format!(
-            "the last output message is at tick {last}, but {} output messages at one per {display_every} \
-             ticks cover at most {covered} ticks: a damaged log time",
-            outputs.len()
-        )));
-    }
-    let tools = world.tools.len();
-    let mut connected: Vec<bool> = world.tools.iter().map(|t| t.active).collect();
-    let mut echo = vec![(0u64, 0u64); tools];
-    let mut report = VerifyReport {
-        digest: 0xcbf29ce484222325,
-        ..VerifyReport::default()
-    };
-    let mut next = 0usize;
+    let mut replay = Replay::new(recording, work_dir)?;
     // The keyframe at tick 0 (and whatever else was recorded before the first step).
-    let check_outputs_at = |world: &World,
-                            meshes: &mut MeshSchedule,
-                            connected: &[bool],
-                            rejected: &[bool],
-                            echo: &[(u64, u64)],
-                            next: &mut usize,
-                            report: &mut VerifyReport|
-     -> Result<(), VerifyError> {
-        let tick = world.tick;
-        let mut mesh_produced: Vec<(bool, Vec<u8>)> = Vec::new();
-        // A keyframe request (a display connecting) gives every body a keyframe; a body whose
-        // topology changed, or a body a transection made, gets one of its own. Only the first is
-        // replayed as a request: when every body has a recorded keyframe at this tick.
-        let mut keyframed = 0u64;
-        let mut keyframes = 0usize;
-        for m in outputs[*next..]
+    replay.check_outputs()?;
+    while replay.world.tick < replay.last {
+        if replay.report.ticks >= replay.covered {
+            return Err(VerifyError::Session(format!(
+                "{} ticks replayed and the outputs account for at most {}: damaged log times or resets",
+                replay.report.ticks, replay.covered
+            )));
+        }
+        replay.step();
+        replay.check_outputs()?;
+        if replay.world.tick % 1000 == 0 {
+            progress(replay.world.tick, replay.last);
+        }
+    }
+    if let Some(m) = replay.outputs.get(replay.next) {
+        return Err(VerifyError::Differs(Difference {
+            tick: tick_at(m.log_time, replay.session.dt),
+            channel: m.topic.clone(),
+            field: "(message)".into(),
+            recorded: "present".into(),
+            replayed: "not produced".into(),
+        }));
+    }
+    Ok(replay.report)
+}
+
+/// A replay under way: the recorded scene's world, driven by the recorded inputs and events, and
+/// the recorded outputs it is compared with, in order.
+struct Replay<'r> {
+    session: &'r proto::Scene,
+    scene: crate::scene::Scene,
+    world: World,
+    meshes: MeshSchedule,
+    /// A `palpa serve` session (its feedback echoes the inputs' sequence numbers and device
+    /// times), not a `palpa run` one.
+    serve_mode: bool,
+    tool_index: BTreeMap<String, usize>,
+    /// Inputs and events by tick, outputs in order.
+    inputs: BTreeMap<u64, Vec<proto::ToolInput>>,
+    events: BTreeMap<u64, Vec<proto::Event>>,
+    outputs: Vec<&'r RecordedMessage>,
+    /// The tick of the last output, and the most ticks the outputs can account for.
+    last: u64,
+    covered: u64,
+    /// Per tool: connected, its input rejected this tick, the sequence number and device time its
+    /// feedback echoes.
+    connected: Vec<bool>,
+    rejected: Vec<bool>,
+    echo: Vec<(u64, u64)>,
+    /// The next output to compare.
+    next: usize,
+    report: VerifyReport,
+}
+
+impl<'r> Replay<'r> {
+    /// The recorded session's scene rebuilt in `work_dir`, its world at the start, and the
+    /// recording's messages sorted into inputs, events and outputs (each input checked).
+    fn new(recording: &'r Recording, work_dir: &Path) -> Result<Self, VerifyError> {
+        let session = &recording.scene;
+        check_session(session)?;
+        let scene = rebuild_scene(recording, work_dir)?;
+        if scene.world.dt.to_bits() != session.dt.to_bits() {
+            return Err(VerifyError::Session(format!(
+                "the scene steps at dt = {} s but the session was recorded at {} s",
+                scene.world.dt, session.dt
+            )));
+        }
+        let mut world = World::from_scene(&scene);
+        let meshes = MeshSchedule::new(&world, session.display_rate_hz, session.keyframe_every_s);
+        let tool_index: BTreeMap<String, usize> = world
+            .tools
             .iter()
-            .take_while(|m| tick_of(m) == tick)
-            .filter(|m| m.topic == "/palpa/mesh/keyframe")
-        {
-            let body = proto::MeshKeyframe::decode(m.data.as_slice()).map_or(u32::MAX, |k| k.body);
-            if body < 64 && keyframed & (1 << body) == 0 {
-                keyframed |= 1 << body;
-                keyframes += 1;
+            .enumerate()
+            .map(|(i, t)| (t.name.clone(), i))
+            .collect();
+        drive_by_recorded_poses(&mut world);
+        let mut inputs: BTreeMap<u64, Vec<proto::ToolInput>> = BTreeMap::new();
+        let mut events: BTreeMap<u64, Vec<proto::Event>> = BTreeMap::new();
+        let mut outputs: Vec<&RecordedMessage> = Vec::new();
+        for m in &recording.messages {
+            if m.topic.ends_with("/input") {
+                let i: proto::ToolInput = decode_message(m)?;
+                check_input(&i).map_err(|reason| MessageError::new(m, reason))?;
+                inputs.entry(i.tick).or_default().push(i);
+            } else if m.topic == "/palpa/events" {
+                let e: proto::Event = decode_message(m)?;
+                events.entry(e.tick).or_default().push(e);
+            } else if m.topic.ends_with("/feedback") || m.topic.starts_with("/palpa/mesh/") {
+                outputs.push(m);
             }
         }
-        let wants_keyframe = keyframes > 0 && keyframes >= world.bodies.len().min(64);
-        if wants_keyframe {
-            meshes.request_keyframe();
+        let last = outputs
+            .last()
+            .map_or(0, |m| tick_at(m.log_time, session.dt));
+        // Every body sends a mesh message every `display_every` ticks and every tool a feedback
+        // message every tick, so the outputs of a session of `last` ticks are at least
+        // `last / display_every`: a last tick beyond that is a damaged log time, which would
+        // otherwise be replayed for ages.
+        let display_every = meshes.display_every();
+        let covered = (outputs.len() as u64 + 1).saturating_mul(display_every);
+        if last > covered {
+            return Err(VerifyError::Session(format!(
+                "the last output message is at tick {last}, but {} output messages at one per {display_every} \
+                 ticks cover at most {covered} ticks: a damaged log time",
+                outputs.len()
+            )));
         }
-        let _ = meshes.produce(world, |header, bytes| -> Result<(), ()> {
-            mesh_produced.push(mesh_message(header, bytes));
-            Ok(())
-        });
-        let mut mesh_cursor = 0;
-        while *next < outputs.len() && tick_of(outputs[*next]) == tick {
-            let m = outputs[*next];
-            *next += 1;
-            let replayed: Vec<u8> = if m.topic.ends_with("/feedback") {
-                let name = m
-                    .topic
-                    .trim_start_matches("/palpa/tool/")
-                    .trim_end_matches("/feedback");
-                let Some(&t) = tool_index.get(name) else {
-                    return Err(VerifyError::Differs(Difference {
-                        tick,
-                        channel: m.topic.clone(),
-                        field: "tool".into(),
-                        recorded: name.into(),
-                        replayed: "(no such tool)".into(),
-                    }));
-                };
-                let mut payload =
-                    feedback_payload(&world.tools[t], tick, connected[t], rejected[t], echo[t]);
-                // As the daemon sends it: flag 4 on every tool's feedback of a tick where the
-                // divergence guard restored a body.
-                if crate::daemon::guard_acted(world) {
-                    payload.flags |= crate::ipc::payload::FEEDBACK_DIVERGED;
-                }
-                report.feedback += 1;
-                feedback_message(name, &payload).encode_to_vec()
+        let tools = world.tools.len();
+        Ok(Self {
+            session,
+            scene,
+            connected: world.tools.iter().map(|t| t.active).collect(),
+            rejected: vec![false; tools],
+            echo: vec![(0u64, 0u64); tools],
+            world,
+            meshes,
+            serve_mode: session.mode == "serve",
+            tool_index,
+            inputs,
+            events,
+            outputs,
+            last,
+            covered,
+            next: 0,
+            report: VerifyReport {
+                digest: 0xcbf29ce484222325,
+                ..VerifyReport::default()
+            },
+        })
+    }
+
+    fn tick_of(&self, m: &RecordedMessage) -> u64 {
+        tick_at(m.log_time, self.session.dt)
+    }
+
+    /// One tick: the recorded reset, inputs and events of the world's tick applied, then a step.
+    fn step(&mut self) {
+        let tick = self.world.tick;
+        self.rejected.fill(false);
+        // A reset is applied once: the world's tick starts again from 0 and passes this tick again.
+        if let Some(list) = self.events.get_mut(&tick)
+            && list.iter().any(|e| e.kind == event::RESET)
+        {
+            list.retain(|e| e.kind != event::RESET);
+            self.world = World::from_scene(&self.scene);
+            drive_by_recorded_poses(&mut self.world);
+            self.meshes.reset(&self.world);
+            self.connected = self.world.tools.iter().map(|t| t.active).collect();
+        }
+        self.take_inputs(tick);
+        self.take_events(tick);
+        if !self.serve_mode {
+            for (t, tool) in self.world.tools.iter().enumerate() {
+                self.connected[t] = tool.active || self.connected[t];
+            }
+        }
+        self.world.step();
+        if !self.serve_mode {
+            for (t, tool) in self.world.tools.iter().enumerate() {
+                self.connected[t] = tool.active;
+            }
+        }
+        self.report.ticks += 1;
+    }
+
+    /// The recorded poses of `tick` set as the tools' targets.
+    fn take_inputs(&mut self, tick: u64) {
+        let Some(list) = self.inputs.get(&tick) else {
+            return;
+        };
+        for input in list {
+            let Some(&t) = self.tool_index.get(input.tool.as_str()) else {
+                continue;
+            };
+            let p = input.position.unwrap_or_default();
+            let q = input.orientation.unwrap_or_default();
+            let pose = ToolPose {
+                position_in_world: Vec3::new(p.x, p.y, p.z),
+                world_from_tool: nalgebra::UnitQuaternion::from_quaternion(
+                    nalgebra::Quaternion::new(q.w, q.x, q.y, q.z),
+                ),
+            };
+            self.world.tools[t].set_target(pose, input.jaw.max(0.0));
+            self.connected[t] = true;
+            self.echo[t] = if self.serve_mode {
+                (input.seq, input.device_time_ns)
             } else {
-                report.meshes += 1;
+                (0, 0)
+            };
+        }
+    }
+
+    /// The recorded rejections and disconnections of `tick`.
+    fn take_events(&mut self, tick: u64) {
+        let Some(list) = self.events.get(&tick) else {
+            return;
+        };
+        for e in list {
+            let Some(&t) = self.tool_index.get(e.tool.as_str()) else {
+                continue;
+            };
+            match e.kind {
+                event::INPUT_REJECTED => self.rejected[t] = true,
+                event::DISCONNECT => {
+                    self.world.tools[t].deactivate();
+                    self.connected[t] = false;
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// The outputs recorded at the world's tick, each compared with the one the replay produces
+    /// (and added to the digest); the first that differs is the error.
+    fn check_outputs(&mut self) -> Result<(), VerifyError> {
+        let tick = self.world.tick;
+        let mesh_produced = self.produce_meshes();
+        let mut mesh_cursor = 0;
+        while self.next < self.outputs.len() && self.tick_of(self.outputs[self.next]) == tick {
+            let m = self.outputs[self.next];
+            self.next += 1;
+            let replayed: Vec<u8> = if m.topic.ends_with("/feedback") {
+                self.report.feedback += 1;
+                self.feedback_for(m)?
+            } else {
+                self.report.meshes += 1;
                 match mesh_produced.get(mesh_cursor) {
                     Some((_, bytes)) => {
                         mesh_cursor += 1;
@@ -493,7 +594,7 @@ pub fn verify(
                     None => Vec::new(),
                 }
             };
-            fnv(&mut report.digest, &replayed);
+            fnv(&mut self.report.digest, &replayed);
             if replayed != m.data {
                 let (field, recorded, replayed) = if m.topic.ends_with("/feedback") {
                     first_difference::<proto::Feedback>(&m.data, &replayed)
@@ -512,109 +613,81 @@ pub fn verify(
             }
         }
         Ok(())
-    };
-    let no_rejections = vec![false; tools];
-    check_outputs_at(
-        &world,
-        &mut meshes,
-        &connected,
-        &no_rejections,
-        &echo,
-        &mut next,
-        &mut report,
-    )?;
-    while world.tick < last {
-        let tick = world.tick;
-        let mut rejected = vec![false; tools];
-        if report.ticks >= covered {
-            return Err(VerifyError::Session(format!(
-                "{} ticks replayed and the outputs account for at most {covered}: damaged log times or resets",
-                report.ticks
-            )));
-        }
-        // A reset is applied once: the world's tick starts again from 0 and passes this tick again.
-        if let Some(list) = events.get_mut(&tick)
-            && list.iter().any(|e| e.kind == event::RESET)
+    }
+
+    /// The mesh messages of the world's tick, as the daemon would send them. A keyframe request
+    /// (a display connecting) gives every body a keyframe; a body whose topology changed, or a
+    /// body a transection made, gets one of its own. Only the first is replayed as a request:
+    /// when every body has a recorded keyframe at this tick.
+    fn produce_meshes(&mut self) -> Vec<(bool, Vec<u8>)> {
+        let tick = self.world.tick;
+        let mut keyframed = 0u64;
+        let mut keyframes = 0usize;
+        for m in self.outputs[self.next..]
+            .iter()
+            .take_while(|m| self.tick_of(m) == tick)
+            .filter(|m| m.topic == "/palpa/mesh/keyframe")
         {
-            list.retain(|e| e.kind != event::RESET);
-            world = World::from_scene(&scene);
-            drive(&mut world);
-            meshes.reset(&world);
-            connected = world.tools.iter().map(|t| t.active).collect();
-        }
-        if let Some(list) = inputs.get(&tick) {
-            for input in list {
-                let Some(&t) = tool_index.get(input.tool.as_str()) else {
-                    continue;
-                };
-                let p = input.position.unwrap_or_default();
-                let q = input.orientation.unwrap_or_default();
-                let pose = ToolPose {
-                    position_in_world: Vec3::new(p.x, p.y, p.z),
-                    world_from_tool: nalgebra::UnitQuaternion::from_quaternion(
-                        nalgebra::Quaternion::new(q.w, q.x, q.y, q.z),
-                    ),
-                };
-                world.tools[t].set_target(pose, input.jaw.max(0.0));
-                connected[t] = true;
-                echo[t] = if serve_mode {
-                    (input.seq, input.device_time_ns)
-                } else {
-                    (0, 0)
-                };
+            let body = proto::MeshKeyframe::decode(m.data.as_slice()).map_or(u32::MAX, |k| k.body);
+            if body < 64 && keyframed & (1 << body) == 0 {
+                keyframed |= 1 << body;
+                keyframes += 1;
             }
         }
-        if let Some(list) = events.get(&tick) {
-            for e in list {
-                let Some(&t) = tool_index.get(e.tool.as_str()) else {
-                    continue;
-                };
-                match e.kind {
-                    event::INPUT_REJECTED => rejected[t] = true,
-                    event::DISCONNECT => {
-                        world.tools[t].deactivate();
-                        connected[t] = false;
-                    }
-                    _ => {}
-                }
-            }
+        if keyframes > 0 && keyframes >= self.world.bodies.len().min(64) {
+            self.meshes.request_keyframe();
         }
-        if !serve_mode {
-            for (t, tool) in world.tools.iter().enumerate() {
-                connected[t] = tool.active || connected[t];
-            }
+        let mut produced = Vec::new();
+        let sent = self
+            .meshes
+            .produce(&self.world, |header, bytes| -> Result<(), Infallible> {
+                produced.push(mesh_message(header, bytes));
+                Ok(())
+            });
+        match sent {
+            Ok(()) => {}
+            Err(never) => match never {},
         }
-        world.step();
-        if !serve_mode {
-            for (t, tool) in world.tools.iter().enumerate() {
-                connected[t] = tool.active;
-            }
-        }
-        report.ticks += 1;
-        check_outputs_at(
-            &world,
-            &mut meshes,
-            &connected,
-            &rejected,
-            &echo,
-            &mut next,
-            &mut report,
-        )?;
-        if world.tick % 1000 == 0 {
-            progress(world.tick, last);
-        }
+        produced
     }
-    if next < outputs.len() {
-        let m = outputs[next];
-        return Err(VerifyError::Differs(Difference {
-            tick: tick_of(m),
-            channel: m.topic.clone(),
-            field: "(message)".into(),
-            recorded: "present".into(),
-            replayed: "not produced".into(),
-        }));
+
+    /// The feedback message the replay sends for the recorded feedback message `m`.
+    fn feedback_for(&self, m: &RecordedMessage) -> Result<Vec<u8>, VerifyError> {
+        let name = m
+            .topic
+            .trim_start_matches("/palpa/tool/")
+            .trim_end_matches("/feedback");
+        let Some(&t) = self.tool_index.get(name) else {
+            return Err(VerifyError::Differs(Difference {
+                tick: self.world.tick,
+                channel: m.topic.clone(),
+                field: "tool".into(),
+                recorded: name.into(),
+                replayed: "(no such tool)".into(),
+            }));
+        };
+        let world = &self.world;
+        let mut payload = feedback_payload(
+            &world.tools[t],
+            world.tick,
+            self.connected[t],
+            self.rejected[t],
+            self.echo[t],
+        );
+        // As the daemon sends it: flag 4 on every tool's feedback of a tick where the divergence
+        // guard restored a body.
+        if crate::daemon::guard_acted(world) {
+            payload.flags |= crate::ipc::payload::FEEDBACK_DIVERGED;
+        }
+        Ok(feedback_message(name, &payload).encode_to_vec())
     }
-    Ok(report)
+}
+
+/// Every tool driven by the recorded poses; a scripted tool keeps its starting pose and state.
+fn drive_by_recorded_poses(world: &mut World) {
+    for tool in &mut world.tools {
+        tool.input = ToolInput::Ipc;
+    }
 }
 
 /// Why a replay failed.
