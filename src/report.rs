@@ -3,7 +3,27 @@
 //! and the machine and date a report names.
 
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A plot that could not be drawn or written, with plotters' account of why.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot draw {}: {reason}", path.display())]
+pub struct PlotError {
+    /// The SVG file asked for.
+    pub path: PathBuf,
+    /// plotters' reason.
+    pub reason: String,
+}
+
+impl PlotError {
+    /// A failure drawing `path`, from plotters' error.
+    fn at(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> PlotError + '_ {
+        move |e| PlotError {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        }
+    }
+}
 
 /// One named curve.
 pub struct Series {
@@ -50,9 +70,10 @@ pub fn loglog(
     x_label: &str,
     y_label: &str,
     series: &[Series],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
+    let fail = PlotError::at(path);
     let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
     let all = || series.iter().flat_map(|s| s.points.iter().copied());
     let (x0, x1) = range_of(all().map(|p| p.0), true);
     let (y0, y1) = range_of(all().map(|p| p.1), true);
@@ -62,7 +83,7 @@ pub fn loglog(
         .x_label_area_size(48)
         .y_label_area_size(72)
         .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -72,7 +93,7 @@ pub fn loglog(
         .x_label_formatter(&|v| format!("{v:.1e}"))
         .y_label_formatter(&|v| format!("{v:.1e}"))
         .draw()
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     for (k, s) in series.iter().enumerate() {
         let colour = COLOURS[k % COLOURS.len()];
         let points: Vec<(f64, f64)> = s
@@ -84,7 +105,7 @@ pub fn loglog(
         if !s.points_only {
             chart
                 .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
-                .map_err(|e| e.to_string())?
+                .map_err(|e| fail(&e))?
                 .label(s.name.clone())
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
@@ -92,7 +113,7 @@ pub fn loglog(
         }
         let marks = chart
             .draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| fail(&e))?;
         if s.points_only {
             marks
                 .label(s.name.clone())
@@ -114,8 +135,8 @@ pub fn loglog(
             SeriesLabelPosition::UpperRight
         })
         .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())
+        .map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))
 }
 
 /// A histogram: bars of `counts` over bins of width `width` starting at `start` (x in the unit of
@@ -125,9 +146,10 @@ pub fn histogram(
     title: &str,
     x_label: &str,
     bars: &[(f64, f64, u64)],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
+    let fail = PlotError::at(path);
     let root = SVGBackend::new(path, (800, 480)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
     let x0 = bars.iter().map(|b| b.0).fold(f64::INFINITY, f64::min);
     let x1 = bars.iter().map(|b| b.1).fold(f64::NEG_INFINITY, f64::max);
     let (x0, x1) = if x0.is_finite() && x1 > x0 {
@@ -142,19 +164,19 @@ pub fn histogram(
         .x_label_area_size(48)
         .y_label_area_size(64)
         .build_cartesian_2d(x0..x1, (0.5..top).log_scale())
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     chart
         .configure_mesh()
         .x_desc(x_label)
         .y_desc("count")
         .draw()
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     chart
         .draw_series(bars.iter().filter(|b| b.2 > 0).map(|&(a, b, n)| {
             Rectangle::new([(a, 0.5), (b, n as f64)], COLOURS[0].mix(0.8).filled())
         }))
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())
+        .map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))
 }
 
 /// Stable (green) and unstable (red) cells on log axes, with a bound drawn as a line.
@@ -165,9 +187,10 @@ pub fn stability_map(
     y_label: &str,
     cells: &[(f64, f64, bool)],
     bound: &[(f64, f64)],
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
+    let fail = PlotError::at(path);
     let root = SVGBackend::new(path, (700, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
     let (x0, x1) = range_of(cells.iter().map(|c| c.0), true);
     let (y0, y1) = range_of(cells.iter().map(|c| c.1), true);
     let mut chart = ChartBuilder::on(&root)
@@ -176,7 +199,7 @@ pub fn stability_map(
         .x_label_area_size(48)
         .y_label_area_size(72)
         .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -184,7 +207,7 @@ pub fn stability_map(
         .x_label_formatter(&|v| format!("{v:.1e}"))
         .y_label_formatter(&|v| format!("{v:.1e}"))
         .draw()
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| fail(&e))?;
     let green = RGBColor(44, 160, 44);
     let red = RGBColor(214, 39, 40);
     chart
@@ -194,7 +217,7 @@ pub fn stability_map(
                 .filter(|c| c.2)
                 .map(|c| Circle::new((c.0, c.1), 7, green.filled())),
         )
-        .map_err(|e| e.to_string())?
+        .map_err(|e| fail(&e))?
         .label("stable")
         .legend(move |(x, y)| Circle::new((x + 10, y), 6, green.filled()));
     chart
@@ -204,7 +227,7 @@ pub fn stability_map(
                 .filter(|c| !c.2)
                 .map(|c| Cross::new((c.0, c.1), 7, red.stroke_width(3))),
         )
-        .map_err(|e| e.to_string())?
+        .map_err(|e| fail(&e))?
         .label("unstable or guarded")
         .legend(move |(x, y)| Cross::new((x + 10, y), 6, red.stroke_width(3)));
     let line: Vec<(f64, f64)> = bound
@@ -214,7 +237,7 @@ pub fn stability_map(
         .collect();
     chart
         .draw_series(LineSeries::new(line, BLACK.stroke_width(2)))
-        .map_err(|e| e.to_string())?
+        .map_err(|e| fail(&e))?
         .label("analytic bound ω·Δt = 2")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
     chart
@@ -223,8 +246,8 @@ pub fn stability_map(
         .border_style(BLACK)
         .position(SeriesLabelPosition::LowerRight)
         .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())
+        .map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))
 }
 
 /// A simple progress bar on standard error.
@@ -318,4 +341,32 @@ pub fn utc_now() -> String {
     time::OffsetDateTime::now_utc()
         .format(format)
         .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plot_that_cannot_be_written_names_its_file() {
+        let path = Path::new("/nonexistent-palpa-dir/plot.svg");
+        let series = [Series {
+            name: "a".into(),
+            points: vec![(1.0, 1.0), (10.0, 100.0)],
+            points_only: false,
+        }];
+        let error = loglog(path, "t", "x", "y", &series).expect_err("no such folder");
+        assert_eq!(error.path, path);
+        assert!(
+            error
+                .to_string()
+                .starts_with("cannot draw /nonexistent-palpa-dir/plot.svg: "),
+            "{error}"
+        );
+        let written = std::env::temp_dir().join(format!("palpa-plot-{}.svg", std::process::id()));
+        loglog(&written, "t", "x", "y", &series).expect("a writable folder");
+        let svg = std::fs::read_to_string(&written).expect("the plot was written");
+        std::fs::remove_file(&written).ok();
+        assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(80)]);
+    }
 }

@@ -409,8 +409,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
         "Round trip, device pose to feedback (µs)",
         "µs",
         &bars,
-    )
-    .map_err(|e| anyhow::anyhow!(e))?;
+    )?;
     let compute_bars: Vec<(f64, f64, u64)> = compute
         .iter()
         .map(|&(b, c)| (b as f64, b as f64 + 1.0, c))
@@ -420,8 +419,7 @@ fn latency(args: LatencyArgs) -> Result<()> {
         "Daemon tick compute time (µs, 1 µs bins)",
         "µs",
         &compute_bars,
-    )
-    .map_err(|e| anyhow::anyhow!(e))?;
+    )?;
     let d = &result["daemon"];
     let rt = &result["round_trip_us"];
     let fl = &result["floor_ping_pong_us"];
@@ -713,8 +711,7 @@ fn scaling(args: ScalingArgs) -> Result<()> {
                 points_only: false,
             },
         ],
-    )
-    .map_err(|e| anyhow::anyhow!(e))?;
+    )?;
     let mut md = format!(
         "# palpa-bench scaling\n\n`{}` — {} — {}\n\nOne step (multi-rate integrator; {}) of an \
          icosphere (rigid component held) resting on a table, without and with an 8 mm probe pressed 5 mm into it. Fitted \
@@ -1423,8 +1420,7 @@ fn cut(args: CutArgs) -> Result<()> {
             },
             "tick time (µs)",
             &bars,
-        )
-        .map_err(|e| anyhow::anyhow!(e))?;
+        )?;
     }
     let row = spread_row;
     let mut md = format!(

@@ -538,8 +538,7 @@ fn stability_maps(quick: bool, out: &Path, progress: &mut Progress) -> Result<(V
             "node mass m (kg)",
             &cells,
             &bound,
-        )
-        .map_err(|e| anyhow::anyhow!(e))?;
+        )?;
         progress.step(&format!("stability map {integrator}"));
     }
     Ok((rows, Value::Object(agreement)))
@@ -695,8 +694,7 @@ fn write_plots(out: &Path, wp: &WorkPrecision, sub: &[Value]) -> Result<()> {
             "wall seconds per simulated second",
             label,
             &series,
-        )
-        .map_err(|e| anyhow::anyhow!(e))?;
+        )?;
     }
     loglog(
         &out.join("work_precision_subdivision.svg"),
@@ -718,8 +716,7 @@ fn write_plots(out: &Path, wp: &WorkPrecision, sub: &[Value]) -> Result<()> {
                 points_only: true,
             })
             .collect::<Vec<_>>(),
-    )
-    .map_err(|e| anyhow::anyhow!(e))?;
+    )?;
 
     Ok(())
 }
