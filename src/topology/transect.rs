@@ -273,7 +273,6 @@ impl Transector {
         })
     }
 
-    #[allow(clippy::needless_range_loop)] // per-part arrays indexed together
     /// Caps the open loops through marked nodes, splits the surface mass of each part between its
     /// nodes and caps, and moves every part but the heaviest into `spares` (in part order; one spare
     /// per part past the first). `min_angle` (degrees) is the quality bound counted for cap triangles.
@@ -297,29 +296,66 @@ impl Transector {
         {
             return result;
         }
-        // Part masses before the caps.
+        self.measure_parts(body);
+        // 1. Caps (each takes its mass, velocity and links from its own loop).
+        self.cap_loops(body, min_angle, &mut result);
+        // The parent's rigid origin is off its surface's centre of mass by `offset` (rounding, or
+        // masses moved by cuts and subdivision); every piece keeps that offset, so that the rigid
+        // centre of mass stays where it was.
+        let offset = surface_centre_of_mass(body);
+        // 2. Parts into bodies: the heaviest stays.
+        let kept = (0..self.parts)
+            .max_by(|&a, &b| {
+                self.part_mass[a]
+                    .total_cmp(&self.part_mass[b])
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(0);
+        result.kept = kept;
+        let parent_rigid = body.rigid.clone();
+        let slot_of = self.move_parts(body, spares, kept);
+        // 3. Rigid components.
+        self.share_rigid(body, spares, &slot_of, (&parent_rigid, &offset), gravity);
+        // Boundary counts of every piece.
+        for &slot in &slot_of[..self.parts] {
+            let Some(piece) = part_body(body, spares, slot) else {
+                continue;
+            };
+            piece.boundary_edges = self.boundary_next(piece);
+            piece.topology_version += 1;
+            piece.refresh_diagonals();
+        }
+        result
+    }
+
+    /// Each part's surface mass before the caps, and its surface density (over its rest area): the
+    /// caps' mass target.
+    fn measure_parts(&mut self, body: &Body) {
         let n0 = body.node_count();
         self.part_mass = [0.0; MAX_PARTS];
         for v in 0..n0 {
             self.part_mass[self.part[v] as usize] += body.surface.mass[v];
         }
-        // Surface density of every part (rest area), the caps' mass target.
         let mut part_area = [0.0f64; MAX_PARTS];
+        let h = &body.surface.homologue_in_body;
+        for t in &body.surface.triangles {
+            part_area[self.part[t[0] as usize] as usize] +=
+                triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
+        }
+        let parts = 0..self.parts;
+        for ((density, mass), area) in self.part_density[parts.clone()]
+            .iter_mut()
+            .zip(&self.part_mass[parts.clone()])
+            .zip(&part_area[parts])
         {
-            let h = &body.surface.homologue_in_body;
-            for t in &body.surface.triangles {
-                part_area[self.part[t[0] as usize] as usize] +=
-                    triangle_area(&h[t[0] as usize], &h[t[1] as usize], &h[t[2] as usize]);
-            }
+            *density = if *area > 0.0 { mass / area } else { 0.0 };
         }
-        for p in 0..self.parts {
-            self.part_density[p] = if part_area[p] > 0.0 {
-                self.part_mass[p] / part_area[p]
-            } else {
-                0.0
-            };
-        }
-        // 1. Caps (each takes its mass, velocity and links from its own loop).
+    }
+
+    /// Walks each open loop of the boundary through a marked node and caps it (a loop that does not
+    /// close, or of fewer than three nodes, is refused), counted in `result`.
+    fn cap_loops(&mut self, body: &mut Body, min_angle: f64, result: &mut Transection) {
+        let n0 = body.node_count();
         self.boundary_next(body);
         self.visited.clear();
         self.visited.resize(n0, false);
@@ -351,34 +387,24 @@ impl Transector {
                 result.caps_refused += 1;
                 continue;
             }
-            if self.cap_loop(body, min_angle, &mut result) {
+            if self.cap_loop(body, min_angle, result) {
                 result.caps += 1;
             } else {
                 result.caps_refused += 1;
             }
         }
+    }
+
+    /// Copies every part but `kept` (nodes renumbered in order, its triangles and edges) into its
+    /// spare, and keeps part `kept` in `body`; returns each part's spare slot (`usize::MAX` for the
+    /// kept part).
+    fn move_parts(
+        &mut self,
+        body: &mut Body,
+        spares: &mut [Option<&mut Body>],
+        kept: usize,
+    ) -> [usize; MAX_PARTS] {
         let n1 = body.node_count();
-        // The parent's rigid origin is off its surface's centre of mass by `offset` (rounding, or
-        // masses moved by cuts and subdivision); every piece keeps that offset, so that the rigid
-        // centre of mass stays where it was.
-        let offset = {
-            let s = &body.surface;
-            let mut first = Vec3::zeros();
-            for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
-                first += h * *m;
-            }
-            first / s.mass.iter().sum::<f64>()
-        };
-        // 2. Parts into bodies: the heaviest stays.
-        let kept = (0..self.parts)
-            .max_by(|&a, &b| {
-                self.part_mass[a]
-                    .total_cmp(&self.part_mass[b])
-                    .then(b.cmp(&a))
-            })
-            .unwrap_or(0);
-        result.kept = kept;
-        let parent_rigid = body.rigid.clone();
         let mut counts = [0u32; MAX_PARTS];
         self.new_index.clear();
         for v in 0..n1 {
@@ -437,7 +463,23 @@ impl Transector {
             }
         }
         self.compact(body, kept as u32);
-        // 3. Rigid components.
+        slot_of
+    }
+
+    /// The parent's rigid component shared between the pieces (in `body` and the spares of
+    /// `slot_of`): mass in proportion to their surface mass, each rebased on its own nodes keeping
+    /// the parent's `offset`, velocities from the parent's motion, and the angular momentum left
+    /// over shared by mass; a piece freed from a fixed body starts where its links and weight
+    /// balance.
+    #[allow(clippy::needless_range_loop)] // per-part arrays indexed together
+    fn share_rigid(
+        &self,
+        body: &mut Body,
+        spares: &mut [Option<&mut Body>],
+        slot_of: &[usize; MAX_PARTS],
+        (parent_rigid, offset): (&RigidComponent, &Vec3),
+        gravity: &Vec3,
+    ) {
         let mut origins = [Vec3::zeros(); MAX_PARTS];
         let mut rigid_mass = [0.0f64; MAX_PARTS];
         let surface_total: f64 = self.part_mass[..self.parts].iter().sum();
@@ -449,7 +491,7 @@ impl Transector {
             let Some(piece) = part_body(body, spares, slot_of[p]) else {
                 continue;
             };
-            origins[p] = rebase_rigid(piece, &parent_rigid, rigid_mass[p], &offset);
+            origins[p] = rebase_rigid(piece, parent_rigid, rigid_mass[p], offset);
             weighted_origin += origins[p] * rigid_mass[p];
         }
         weighted_origin /= parent_rigid.mass;
@@ -495,16 +537,6 @@ impl Transector {
                 }
             }
         }
-        // Boundary counts of every piece.
-        for p in 0..self.parts {
-            let Some(piece) = part_body(body, spares, slot_of[p]) else {
-                continue;
-            };
-            piece.boundary_edges = self.boundary_next(piece);
-            piece.topology_version += 1;
-            piece.refresh_diagonals();
-        }
-        result
     }
 
     /// Keeps the nodes, triangles and edges of part `kept` in the body, renumbered in order.
@@ -873,6 +905,16 @@ impl Transector {
             s.air_damping[v] = nu * s.mass[v];
         }
     }
+}
+
+/// The mass-weighted mean of `body`'s nodes' rest places (body frame).
+fn surface_centre_of_mass(body: &Body) -> Vec3 {
+    let s = &body.surface;
+    let mut first = Vec3::zeros();
+    for (h, m) in s.homologue_in_body.iter().zip(&s.mass) {
+        first += h * *m;
+    }
+    first / s.mass.iter().sum::<f64>()
 }
 
 /// The body a part goes to: the body itself for the kept part (`slot` = `usize::MAX`), otherwise the
