@@ -3737,19 +3737,39 @@ impl CandidateCache {
         counters: &mut BodyContactCounters,
     ) {
         let n = bodies.len().min(self.slots);
-        let slots = self.slots;
         let first_of_tick = call == ListCall::Response;
         if call == ListCall::Net {
             self.net_ticks += 1;
         }
-        for k in 0..n {
-            self.renewed[k] = near[k]
-                && (!self.keep || self.reference[k].is_none() || !self.holds(k, &bodies[k]));
+        self.renew_references(&bodies[..n], near, first_of_tick);
+        if call == ListCall::Net {
+            self.take_anchors(&bodies[..n], near);
+        }
+        let pairs_of = |i: usize, j: usize| pair_to_list(group, bounds, i, j);
+        if !self.unlist_renewed(n, pairs_of) {
+            return;
+        }
+        self.refit_for_listing(&bodies[..n], bvhs, pairs_of);
+        self.relist(
+            &bodies[..n],
+            pairs_of,
+            bvhs,
+            (near_triangles, found),
+            counters,
+        );
+    }
+
+    /// Per body near another: its references renewed where they no longer hold (or when they are
+    /// not kept), how far the net's anchor was left, and (at the tick's first call) the streak of
+    /// ticks renewed.
+    fn renew_references(&mut self, bodies: &[Body], near: &[bool], first_of_tick: bool) {
+        for (k, body) in bodies.iter().enumerate() {
+            self.renewed[k] =
+                near[k] && (!self.keep || self.reference[k].is_none() || !self.holds(k, body));
             // How far the net's anchor was left (unknown for a body not near another, none of
             // whose pairs is used this tick; an anchor once left by more than its slack is not
             // weighed again until it is taken again).
             self.anchor_excursion[k] = f64::INFINITY;
-            let body = &bodies[k];
             if near[k]
                 && !first_of_tick
                 && !self.anchor_left[k]
@@ -3774,51 +3794,60 @@ impl CandidateCache {
                 };
             }
             if self.renewed[k] {
-                self.renew(k, &bodies[k]);
+                self.renew(k, body);
             }
         }
-        // The net's anchors, all near bodies' on the same tick (a pair's least gap is found with
-        // both anchors): taken again when one is not for its body's topology or was left by more
-        // than its slack, at most every [`ANCHOR_HELD`] ticks (bodies that move on have no use for
-        // them; an anchor left by more is still sound, only looser).
-        if call == ListCall::Net {
-            // (Infinite for an anchor that does not hold for the body's topology, or none.)
-            let wanted = (0..n).any(|k| near[k] && self.anchor_excursion[k] > ANCHOR_SLACK);
-            if wanted
-                && self
-                    .anchor_tick
-                    .is_none_or(|tick| self.net_ticks - tick >= ANCHOR_HELD)
-            {
-                self.anchor_tick = Some(self.net_ticks);
-                for k in (0..n).filter(|&k| near[k]) {
-                    self.anchor(k, &bodies[k]);
-                }
+    }
+
+    /// The net's anchors, all near bodies' on the same tick (a pair's least gap is found with both
+    /// anchors): taken again when one is not for its body's topology or was left by more than its
+    /// slack, at most every [`ANCHOR_HELD`] ticks (bodies that move on have no use for them; an
+    /// anchor left by more is still sound, only looser).
+    fn take_anchors(&mut self, bodies: &[Body], near: &[bool]) {
+        let n = bodies.len();
+        // (Infinite for an anchor that does not hold for the body's topology, or none.)
+        let wanted = (0..n).any(|k| near[k] && self.anchor_excursion[k] > ANCHOR_SLACK);
+        if wanted
+            && self
+                .anchor_tick
+                .is_none_or(|tick| self.net_ticks - tick >= ANCHOR_HELD)
+        {
+            self.anchor_tick = Some(self.net_ticks);
+            for k in (0..n).filter(|&k| near[k]) {
+                self.anchor(k, &bodies[k]);
             }
         }
-        let pairs_of = |i: usize, j: usize| {
-            i != j
-                && group.get(i).is_none_or(|g| group.get(j) != Some(g))
-                && bounds[i].overlaps(&bounds[j])
-        };
+    }
+
+    /// Unlists the pairs of a renewed body, and those listed only for now or in part; returns
+    /// whether any pair `pairs_of` asks for is left to list.
+    fn unlist_renewed(&mut self, n: usize, pairs_of: impl Fn(usize, usize) -> bool) -> bool {
         let mut any = false;
         for i in 0..n {
             for j in 0..n {
-                let pair = i * slots + j;
+                let pair = i * self.slots + j;
                 if self.renewed[i] || self.renewed[j] || self.listed[pair] > LISTED {
                     self.listed[pair] = NOT_LISTED;
                 }
                 any |= self.listed[pair] == NOT_LISTED && pairs_of(i, j);
             }
         }
-        if !any {
-            return;
-        }
-        // The hierarchies of the bodies of the pairs to list, refitted to their references.
-        let to_list = |i: usize, j: usize, listed: &[u8]| {
-            listed[i * slots + j] == NOT_LISTED && pairs_of(i, j)
-        };
-        for (k, (body, bvh)) in bodies.iter().zip(bvhs.iter_mut()).enumerate().take(n) {
-            let wanted = (0..n).any(|o| to_list(k, o, &self.listed) || to_list(o, k, &self.listed));
+        any
+    }
+
+    /// The hierarchies of the bodies of the pairs to list, refitted to their references (rebuilt
+    /// first for a body whose topology changed).
+    fn refit_for_listing(
+        &self,
+        bodies: &[Body],
+        bvhs: &mut [TriangleBvh],
+        pairs_of: impl Fn(usize, usize) -> bool,
+    ) {
+        let n = bodies.len();
+        let to_list =
+            |i: usize, j: usize| self.listed[i * self.slots + j] == NOT_LISTED && pairs_of(i, j);
+        for (k, (body, bvh)) in bodies.iter().zip(bvhs.iter_mut()).enumerate() {
+            let wanted = (0..n).any(|o| to_list(k, o) || to_list(o, k));
             if !wanted {
                 continue;
             }
@@ -3836,7 +3865,20 @@ impl CandidateCache {
                 LIST_MARGIN_PER_SLACK * self.slack[k],
             );
         }
-        // New lists: the pairs that hold, copied; the others listed.
+    }
+
+    /// New lists into the other of the two buffers: the pairs that hold, copied; the others that
+    /// `pairs_of` asks for, listed (each pair of bodies' vertex and edge entries, and once per
+    /// pair, `i < j`, the net's triangle pairs).
+    fn relist(
+        &mut self,
+        bodies: &[Body],
+        pairs_of: impl Fn(usize, usize) -> bool,
+        bvhs: &mut [TriangleBvh],
+        (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
+        counters: &mut BodyContactCounters,
+    ) {
+        let slots = self.slots;
         let current = self.current;
         let [first, second] = &mut self.entries;
         let (used, next) = if current == 0 {
@@ -3860,8 +3902,8 @@ impl CandidateCache {
         next_pairs.clear();
         next_gaps.clear();
 
-        for (i, body) in bodies.iter().enumerate().take(n) {
-            for (j, body_j) in bodies.iter().enumerate().take(n) {
+        for (i, body) in bodies.iter().enumerate() {
+            for (j, body_j) in bodies.iter().enumerate() {
                 let pair = i * slots + j;
                 if self.listed[pair] == LISTED {
                     let mut ranges = self.ranges[pair];
@@ -3932,6 +3974,12 @@ impl CandidateCache {
         }
         self.current = 1 - self.current;
     }
+}
+
+/// Whether bodies `i` and `j` are a pair to list: two bodies, not of one group (pieces of one
+/// transected body), whose bounds meet.
+fn pair_to_list(group: &[usize], bounds: &[Aabb], i: usize, j: usize) -> bool {
+    i != j && group.get(i).is_none_or(|g| group.get(j) != Some(g)) && bounds[i].overlaps(&bounds[j])
 }
 
 /// Who asks [`CandidateCache::list`] to bring the lists up to date.
