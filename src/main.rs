@@ -529,8 +529,7 @@ fn serve(args: ServeArgs) -> Result<()> {
             use palpa::record::live::{LiveSettings, LiveView, parse_address};
             let address = parse_address(text).map_err(|e| anyhow::anyhow!(e))?;
             let live =
-                LiveView::start(address, &World::from_scene(&scene), LiveSettings::default())
-                    .map_err(|e| anyhow::anyhow!(e))?;
+                LiveView::start(address, &World::from_scene(&scene), LiveSettings::default())?;
             println!(
                 "palpa serve: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
                 live.url()

@@ -202,3 +202,30 @@ fn a_recording_played_back_is_shown_live() {
         "one viewer counted: {rest:?}"
     );
 }
+
+/// A live view asked for an address in use says which address and why, as a `LiveError::Listen`,
+/// and starts on a free one.
+#[test]
+fn a_live_view_on_an_address_in_use_names_it() {
+    use palpa::record::live::{LiveError, LiveServer};
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let address = taken.local_addr().expect("its address");
+    match LiveServer::start(address, 16) {
+        Err(LiveError::Listen {
+            address: asked,
+            reason,
+        }) => {
+            assert_eq!(asked, address);
+            assert_eq!(reason.kind(), std::io::ErrorKind::AddrInUse, "{reason}");
+            let message = LiveError::Listen { address, reason }.to_string();
+            assert!(
+                message.starts_with(&format!("live view: cannot listen on {address}: ")),
+                "{message}"
+            );
+        }
+        Err(other) => panic!("expected the address in use, got {other}"),
+        Ok(_) => panic!("listened on {address}, which is in use"),
+    }
+    let free = LiveServer::start("127.0.0.1:0".parse().unwrap(), 16).expect("a free port");
+    assert_ne!(free.address().port(), 0);
+}

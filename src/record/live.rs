@@ -102,17 +102,47 @@ pub struct LiveServer {
     viewers: Arc<AtomicU64>,
 }
 
+/// Why the live view could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// Its I/O runtime (one worker thread) could not start.
+    #[error("live view: cannot start its runtime: {0}")]
+    Runtime(std::io::Error),
+    /// The Foxglove SDK's WebSocket server could not start.
+    #[error("live view: cannot start the WebSocket server: {0}")]
+    Server(String),
+    /// Viewers' address could not be listened on (in use, not this machine's).
+    #[error("live view: cannot listen on {address}: {reason}")]
+    Listen {
+        /// The address asked for.
+        address: SocketAddr,
+        /// Why.
+        reason: std::io::Error,
+    },
+    /// A channel of the session could not be made.
+    #[error("live view: channel {topic}: {reason}")]
+    Channel {
+        /// The channel's topic.
+        topic: String,
+        /// The SDK's reason.
+        reason: String,
+    },
+    /// The publisher's thread could not start.
+    #[error("live view: cannot start its thread: {0}")]
+    Thread(std::io::Error),
+}
+
 impl LiveServer {
     /// Starts the server, viewers connecting on `address` (port 0: a free one, see
     /// [`LiveServer::address`]); each viewer's backlog holds `viewer_backlog` messages.
-    pub fn start(address: SocketAddr, viewer_backlog: usize) -> Result<Self, String> {
+    pub fn start(address: SocketAddr, viewer_backlog: usize) -> Result<Self, LiveError> {
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("palpa-live-io")
             .on_thread_start(keep_off_the_realtime_core)
             .enable_all()
             .build()
-            .map_err(|e| format!("live view: cannot start its runtime: {e}"))?;
+            .map_err(LiveError::Runtime)?;
         let context = Context::new();
         // The SDK's server on a loopback port of its own; viewers reach it through the front.
         let server = WebSocketServer::new()
@@ -122,14 +152,13 @@ impl LiveServer {
             .bind("127.0.0.1", 0)
             .message_backlog_size(viewer_backlog.max(1))
             .start_blocking()
-            .map_err(|e| format!("live view: cannot start the WebSocket server: {e}"))?;
+            .map_err(|e| LiveError::Server(e.to_string()))?;
         let inner = SocketAddr::from(([127, 0, 0, 1], server.port()));
+        let listen = |reason| LiveError::Listen { address, reason };
         let listener = runtime
             .block_on(TcpListener::bind(address))
-            .map_err(|e| format!("live view: cannot listen on {address}: {e}"))?;
-        let address = listener
-            .local_addr()
-            .map_err(|e| format!("live view: {e}"))?;
+            .map_err(listen)?;
+        let address = listener.local_addr().map_err(listen)?;
         let viewers = Arc::new(AtomicU64::new(0));
         runtime.spawn(accept_viewers(listener, inner, viewers.clone()));
         Ok(Self {
@@ -160,7 +189,7 @@ impl LiveServer {
     pub fn channels<'a>(
         &self,
         tools: impl IntoIterator<Item = &'a str>,
-    ) -> Result<LiveChannels, String> {
+    ) -> Result<LiveChannels, LiveError> {
         LiveChannels::new(&self.context, tools)
     }
 }
@@ -199,7 +228,7 @@ impl LiveView {
         address: SocketAddr,
         world: &World,
         settings: LiveSettings,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, LiveError> {
         let server = LiveServer::start(address, settings.viewer_backlog)?;
         let channels = server.channels(world.tools.iter().map(|t| t.name.as_str()))?;
         let records = RecordQueue::new(
@@ -224,7 +253,7 @@ impl LiveView {
                 drop(server);
                 summary
             })
-            .map_err(|e| format!("live view: cannot start its thread: {e}"))?;
+            .map_err(LiveError::Thread)?;
         Ok(Self {
             records,
             done,
@@ -280,7 +309,7 @@ impl LiveChannels {
     fn new<'a>(
         context: &Arc<Context>,
         tools: impl IntoIterator<Item = &'a str>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, LiveError> {
         let (name, encoding, data) = scene_update_schema();
         let mut wanted: Vec<(String, Schema)> =
             vec![(TOPIC_SCENE_UPDATE.into(), Schema::new(name, encoding, data))];
@@ -298,7 +327,10 @@ impl LiveChannels {
                 .message_encoding("protobuf")
                 .schema(schema)
                 .build_raw()
-                .map_err(|e| format!("live view: channel {topic}: {e}"))?;
+                .map_err(|e| LiveError::Channel {
+                    topic: topic.clone(),
+                    reason: e.to_string(),
+                })?;
             channels.insert(topic, channel);
         }
         Ok(Self {

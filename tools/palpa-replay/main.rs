@@ -252,11 +252,8 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
         Some(text) => {
             use palpa::record::live::{LiveServer, LiveSettings, parse_address};
             let address = parse_address(text).map_err(|e| anyhow!(e))?;
-            let server = LiveServer::start(address, LiveSettings::default().viewer_backlog)
-                .map_err(|e| anyhow!(e))?;
-            let channels = server
-                .channels(recording.scene.tools.iter().map(String::as_str))
-                .map_err(|e| anyhow!(e))?;
+            let server = LiveServer::start(address, LiveSettings::default().viewer_backlog)?;
+            let channels = server.channels(recording.scene.tools.iter().map(String::as_str))?;
             println!(
                 "play: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
                 server.url()
