@@ -12,7 +12,7 @@ use prost::Message;
 
 use super::proto;
 use super::reader::{Damage, Item, Problem, read_records};
-use super::recorder::{feedback_message, mesh_message};
+use super::recorder::{RecordError, feedback_message, mesh_message};
 use crate::Vec3;
 use crate::daemon::feedback_payload;
 use crate::daemon::sink::event;
@@ -803,56 +803,50 @@ fn check_input(input: &proto::ToolInput) -> Result<(), String> {
 
 /// Writes a recording (its scene, attachments and messages) to a new MCAP file — used to make
 /// altered copies in tests and to repair truncated files.
-pub fn write_recording(recording: &Recording, path: &Path) -> Result<(), String> {
-    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+pub fn write_recording(recording: &Recording, path: &Path) -> Result<(), RecordError> {
+    let file = std::fs::File::create(path).map_err(|reason| RecordError::Create {
+        path: path.to_path_buf(),
+        reason,
+    })?;
     let mut writer = mcap::WriteOptions::new()
         .compression(Some(mcap::Compression::Zstd))
         .compression_threads(0)
         .profile("palpa")
-        .create(std::io::BufWriter::new(file))
-        .map_err(|e| e.to_string())?;
+        .create(std::io::BufWriter::new(file))?;
     let mut channels: BTreeMap<String, u16> = BTreeMap::new();
     for m in &recording.messages {
         if !channels.contains_key(&m.topic) {
             let message = message_type_of(&m.topic);
-            let schema = writer
-                .add_schema(
-                    &format!("palpa.{message}"),
-                    "protobuf",
-                    super::DESCRIPTOR_SET,
-                )
-                .map_err(|e| e.to_string())?;
-            let id = writer
-                .add_channel(schema, &m.topic, "protobuf", &BTreeMap::new())
-                .map_err(|e| e.to_string())?;
+            let schema = writer.add_schema(
+                &format!("palpa.{message}"),
+                "protobuf",
+                super::DESCRIPTOR_SET,
+            )?;
+            let id = writer.add_channel(schema, &m.topic, "protobuf", &BTreeMap::new())?;
             channels.insert(m.topic.clone(), id);
         }
     }
     for (name, data) in &recording.attachments {
-        writer
-            .attach(&mcap::Attachment {
-                log_time: 0,
-                create_time: 0,
-                name: name.clone(),
-                media_type: "application/octet-stream".into(),
-                data: std::borrow::Cow::Borrowed(data),
-            })
-            .map_err(|e| e.to_string())?;
+        writer.attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: name.clone(),
+            media_type: "application/octet-stream".into(),
+            data: std::borrow::Cow::Borrowed(data),
+        })?;
     }
     for (k, m) in recording.messages.iter().enumerate() {
-        writer
-            .write_to_known_channel(
-                &mcap::records::MessageHeader {
-                    channel_id: channels[&m.topic],
-                    sequence: k as u32,
-                    log_time: m.log_time,
-                    publish_time: m.log_time,
-                },
-                &m.data,
-            )
-            .map_err(|e| e.to_string())?;
+        writer.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: channels[&m.topic],
+                sequence: k as u32,
+                log_time: m.log_time,
+                publish_time: m.log_time,
+            },
+            &m.data,
+        )?;
     }
-    writer.finish().map_err(|e| e.to_string())?;
+    writer.finish()?;
     Ok(())
 }
 
