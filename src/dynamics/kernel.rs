@@ -1361,15 +1361,7 @@ pub(crate) mod avx {
                         _mm256_storeu_pd(rows.add(4 * l), zero);
                     }
                     // [x0 y0 z0 0], [x1 ...] → [x0 x1 x2 x3], [y...], [z...].
-                    let t0 = _mm256_unpacklo_pd(r0, r1);
-                    let t1 = _mm256_unpackhi_pd(r0, r1);
-                    let t2 = _mm256_unpacklo_pd(r2, r3);
-                    let t3 = _mm256_unpackhi_pd(r2, r3);
-                    [
-                        _mm256_permute2f128_pd::<0x20>(t0, t2),
-                        _mm256_permute2f128_pd::<0x20>(t1, t3),
-                        _mm256_permute2f128_pd::<0x31>(t0, t2),
-                    ]
+                    transpose3([r0, r1, r2, r3])
                 };
                 let m = _mm256_loadu_pd(nodes.mass.as_ptr().add(i));
                 let im = _mm256_loadu_pd(nodes.inverse_mass.as_ptr().add(i));
@@ -1562,11 +1554,21 @@ pub(crate) mod avx {
                     _mm256_maskload_pd(p.add(3 * a[l] as usize), xyz),
                 )
             };
-            let (d0, d1, d2, d3) = (lane(0), lane(1), lane(2), lane(3));
-            let t0 = _mm256_unpacklo_pd(d0, d1);
-            let t1 = _mm256_unpackhi_pd(d0, d1);
-            let t2 = _mm256_unpacklo_pd(d2, d3);
-            let t3 = _mm256_unpackhi_pd(d2, d3);
+            transpose3([lane(0), lane(1), lane(2), lane(3)])
+        }
+    }
+
+    /// Four lanes' `[x y z ·]` vectors as vectors of x, y and z (the fourth entries dropped).
+    ///
+    /// # Safety
+    /// AVX.
+    #[inline(always)]
+    pub(crate) unsafe fn transpose3([r0, r1, r2, r3]: [__m256d; 4]) -> [__m256d; 3] {
+        unsafe {
+            let t0 = _mm256_unpacklo_pd(r0, r1);
+            let t1 = _mm256_unpackhi_pd(r0, r1);
+            let t2 = _mm256_unpacklo_pd(r2, r3);
+            let t3 = _mm256_unpackhi_pd(r2, r3);
             [
                 _mm256_permute2f128_pd::<0x20>(t0, t2),
                 _mm256_permute2f128_pd::<0x20>(t1, t3),
