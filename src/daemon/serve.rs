@@ -659,10 +659,7 @@ impl<'a> Daemon<'a> {
             self.sink.mesh(header, bytes);
             Ok::<(), std::convert::Infallible>(())
         });
-        match produced {
-            Ok(()) => {}
-            Err(never) => match never {},
-        }
+        let Ok(()) = produced;
     }
 
     /// The tick's compute time and wake-up lateness into the statistics (published once per

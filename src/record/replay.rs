@@ -638,16 +638,12 @@ impl<'r> Replay<'r> {
             self.meshes.request_keyframe();
         }
         let mut produced = Vec::new();
-        let sent = self
+        let Ok(()) = self
             .meshes
             .produce(&self.world, |header, bytes| -> Result<(), Infallible> {
                 produced.push(mesh_message(header, bytes));
                 Ok(())
             });
-        match sent {
-            Ok(()) => {}
-            Err(never) => match never {},
-        }
         produced
     }
 
