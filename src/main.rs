@@ -735,14 +735,16 @@ fn demo(
         .enumerate()
         .map(|(k, options)| {
             let (stop, latest) = (stop.clone(), latest.clone());
-            std::thread::spawn(move || {
-                run_device(&options, stop, |status| {
-                    if let Ok(mut latest) = latest.lock() {
-                        latest[k + 1] = Some(*status);
-                    }
+            std::thread::Builder::new()
+                .name(format!("palpa-device-{}", k + 1))
+                .spawn(move || {
+                    run_device(&options, stop, |status| {
+                        if let Ok(mut latest) = latest.lock() {
+                            latest[k + 1] = Some(*status);
+                        }
+                    })
+                    .map_err(|e| e.to_string())
                 })
-                .map_err(|e| e.to_string())
-            })
         })
         .collect();
     let terminal = std::io::stdout().is_terminal();
@@ -785,11 +787,12 @@ fn demo(
     }
     let mut reports: Vec<Result<DeviceReport, String>> = vec![first.map_err(|e| e.to_string())];
     for handle in others {
-        reports.push(
-            handle
+        reports.push(match handle {
+            Ok(handle) => handle
                 .join()
                 .unwrap_or_else(|_| Err("the device thread panicked".into())),
-        );
+            Err(e) => Err(format!("cannot start the device's thread: {e}")),
+        });
     }
     // SAFETY: kill(2) on our own child.
     unsafe {

@@ -212,8 +212,13 @@ fn tick_distribution(
     let read = Arc::new(AtomicU64::new(0));
     let viewer_thread = live.then(|| {
         let (stop, read) = (stop.clone(), read.clone());
-        std::thread::spawn(move || viewer(format!("127.0.0.1:{port}"), stop, read))
+        std::thread::Builder::new()
+            .name("palpa-bench-viewer".into())
+            .spawn(move || viewer(format!("127.0.0.1:{port}"), stop, read))
     });
+    let viewer_thread = viewer_thread
+        .transpose()
+        .context("cannot start the viewer's thread")?;
     let options = DeviceOptions::palpating_default_organ(&prefix, duration);
     let report = run_device(&options, Arc::new(AtomicBool::new(false)), |_| {})
         .map_err(|e| anyhow::anyhow!("device: {e}"))?;
@@ -231,7 +236,8 @@ fn tick_distribution(
         std::thread::sleep(Duration::from_millis(20));
     }
     if let Some(t) = viewer_thread {
-        let _ = t.join();
+        t.join()
+            .map_err(|_| anyhow::anyhow!("the viewer's thread panicked"))?;
     }
     let (compute, _) = super::read_timings(&timings)?;
     let ticks: u64 = compute.iter().map(|b| b.1).sum();
