@@ -10,7 +10,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use palpa::record::proto;
-use palpa::record::replay::{read_recording_file, summarise, verify, write_recording};
+use palpa::record::replay::{
+    RecordedMessage, read_recording_file, summarise, verify, verify_timed, write_recording,
+};
 use prost::Message;
 
 fn temp(name: &str) -> PathBuf {
@@ -99,6 +101,76 @@ fn a_recorded_session_verifies_and_an_altered_input_fails_at_its_tick() {
     );
     std::fs::remove_file(path).ok();
     std::fs::remove_file(altered).ok();
+}
+
+#[test]
+fn the_ticks_a_daemon_missed_are_timed_when_replayed() {
+    // The daemon records a miss with the tick its step led to: ticks 1, 2 500 and 5 000 (the last)
+    // are the steps from 0, 2 499 and 4 999. Read as the tick a step starts from, the last one
+    // would never be found.
+    let path = record_session("misses.mcap");
+    let mut recording = read_recording_file(&path).unwrap();
+    let dt_ns = (recording.scene.dt * 1e9).round() as u64;
+    for tick in [1u64, 2500, 5000] {
+        recording.messages.push(RecordedMessage {
+            topic: "/palpa/events".into(),
+            log_time: tick * dt_ns,
+            data: proto::Event {
+                tick,
+                kind: proto::event::Kind::SynchronicityMiss as i32,
+                ..Default::default()
+            }
+            .encode_to_vec(),
+        });
+    }
+    let marked = temp("misses-marked.mcap");
+    write_recording(&recording, &marked).unwrap();
+    let recording = read_recording_file(&marked).unwrap();
+    let work = temp("work-misses");
+    let (report, times) = verify_timed(&recording, &work, |_, _| {}).unwrap();
+    assert_eq!(report.ticks, 5000);
+    assert_eq!(times.ticks(), 5000);
+    assert_eq!(times.at_misses_us.len(), 3, "{:?}", times.at_misses_us);
+    assert_eq!(times.period_us, recording.scene.dt * 1e6);
+    let (median, p99, longest) = (
+        times.quantile_us(0.5),
+        times.quantile_us(0.99),
+        times.max_us,
+    );
+    assert!(
+        0.0 < median && median <= p99 && p99 <= longest && longest.is_finite(),
+        "{median} {p99} {longest}"
+    );
+    assert!(
+        times
+            .at_misses_us
+            .iter()
+            .all(|&us| us > 0.0 && us <= longest)
+    );
+    // The same bits as without the marks: the events are not inputs.
+    let plain = verify(&read_recording_file(&path).unwrap(), &work, |_, _| {}).unwrap();
+    assert_eq!(plain, report);
+
+    let out = replay(&[marked.to_str().unwrap(), "--verify", "--step-times"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("step times: 5000 steps replayed here, mean "),
+        "{text}"
+    );
+    assert!(
+        text.contains("step times: the 3 ticks recorded as synchronicity misses replay in median "),
+        "{text}"
+    );
+    assert!(text.contains("verify: OK — 5000 ticks replayed"), "{text}");
+    // Without the flag the output is the same every run (no times); the flag needs --verify.
+    let out = replay(&[marked.to_str().unwrap(), "--verify"]);
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("step times"));
+    let out = replay(&[marked.to_str().unwrap(), "--step-times"]);
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(work);
+    std::fs::remove_file(path).ok();
+    std::fs::remove_file(marked).ok();
 }
 
 #[test]

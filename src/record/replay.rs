@@ -351,13 +351,89 @@ fn first_difference<M: Message + Default + std::fmt::Debug>(
     ("(encoding)".into(), a, b)
 }
 
+/// How long this machine took to replay each tick's step (wall clock: a diagnostic beside the
+/// compared bits, never part of them), with the ticks the recording marks as synchronicity misses
+/// apart. A tick the daemon missed that replays well within the period was not the scene's work:
+/// the daemon's thread was held off its core (the machine's other work, or stolen time on a
+/// virtual machine) or waited on IPC.
+#[derive(Clone, Debug)]
+pub struct StepTimes {
+    /// Ticks per 1 µs bin of replayed step time; the last bin holds the longer ones.
+    histogram: Vec<u32>,
+    ticks: u64,
+    sum_us: f64,
+    /// Longest replayed step (µs).
+    pub max_us: f64,
+    /// The session's period (µs).
+    pub period_us: f64,
+    /// The replayed step time of each tick the recording marks as a synchronicity miss, in the
+    /// order replayed (µs).
+    pub at_misses_us: Vec<f64>,
+}
+
+/// Bins of [`StepTimes`]'s histogram (1 µs each).
+const STEP_TIME_BINS: usize = 20_000;
+
+impl StepTimes {
+    fn new(period_us: f64) -> Self {
+        Self {
+            histogram: vec![0; STEP_TIME_BINS],
+            ticks: 0,
+            sum_us: 0.0,
+            max_us: 0.0,
+            period_us,
+            at_misses_us: Vec::new(),
+        }
+    }
+
+    fn record(&mut self, us: f64) {
+        self.histogram[(us.max(0.0) as usize).min(STEP_TIME_BINS - 1)] += 1;
+        self.ticks += 1;
+        self.sum_us += us;
+        self.max_us = self.max_us.max(us);
+    }
+
+    /// Steps timed.
+    pub fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
+    /// Mean replayed step time (µs); 0 when none was timed.
+    pub fn mean_us(&self) -> f64 {
+        self.sum_us / self.ticks.max(1) as f64
+    }
+
+    /// The `q` quantile (0 < q ≤ 1) of the replayed step times at 1 µs resolution: the upper edge
+    /// of the bin it falls in, at most the longest step (µs); 0 when none was timed.
+    pub fn quantile_us(&self, q: f64) -> f64 {
+        let rank = ((q * self.ticks as f64).ceil() as u64).max(1);
+        let mut seen = 0u64;
+        for (bin, &count) in self.histogram.iter().enumerate() {
+            seen += count as u64;
+            if seen >= rank && count > 0 {
+                return ((bin + 1) as f64).min(self.max_us);
+            }
+        }
+        0.0
+    }
+}
+
 /// Replays a recording and compares every feedback and mesh message with the recorded one;
 /// `progress(tick, last)` is called every 1000 ticks.
 pub fn verify(
     recording: &Recording,
     work_dir: &Path,
-    mut progress: impl FnMut(u64, u64),
+    progress: impl FnMut(u64, u64),
 ) -> Result<VerifyReport, VerifyError> {
+    verify_timed(recording, work_dir, progress).map(|(report, _)| report)
+}
+
+/// [`verify`], also timing each replayed step on this machine ([`StepTimes`]).
+pub fn verify_timed(
+    recording: &Recording,
+    work_dir: &Path,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<(VerifyReport, StepTimes), VerifyError> {
     let mut replay = Replay::new(recording, work_dir)?;
     // The keyframe at tick 0 (and whatever else was recorded before the first step).
     replay.check_outputs()?;
@@ -383,7 +459,7 @@ pub fn verify(
             replayed: "not produced".into(),
         }));
     }
-    Ok(replay.report)
+    Ok((replay.report, replay.times))
 }
 
 /// A replay under way: the recorded scene's world, driven by the recorded inputs and events, and
@@ -412,6 +488,7 @@ struct Replay<'r> {
     /// The next output to compare.
     next: usize,
     report: VerifyReport,
+    times: StepTimes,
 }
 
 impl<'r> Replay<'r> {
@@ -488,6 +565,7 @@ impl<'r> Replay<'r> {
                 digest: 0xcbf29ce484222325,
                 ..VerifyReport::default()
             },
+            times: StepTimes::new(session.dt * 1e6),
         })
     }
 
@@ -516,7 +594,18 @@ impl<'r> Replay<'r> {
                 self.connected[t] = tool.active || self.connected[t];
             }
         }
+        let started = std::time::Instant::now();
         self.world.step();
+        let us = started.elapsed().as_secs_f64() * 1e6;
+        self.times.record(us);
+        // The daemon marks a miss with the tick the step led to.
+        if self
+            .events
+            .get(&self.world.tick)
+            .is_some_and(|list| list.iter().any(|e| e.kind == event::SYNCHRONICITY_MISS))
+        {
+            self.times.at_misses_us.push(us);
+        }
         if !self.serve_mode {
             for (t, tool) in self.world.tools.iter().enumerate() {
                 self.connected[t] = tool.active;

@@ -9,6 +9,9 @@
 //!   daemon's iceoryx2 services at the recorded pace (scaled), for testing a display without a device.
 //! * `--summary [--json]` prints duration, ticks, tools, contacts, max force, misses, rejects and the
 //!   message count of every channel.
+//! * `--verify --step-times` also times each replayed step on this machine and the ticks the daemon
+//!   recorded as synchronicity misses: a miss whose tick replays well within the period was the
+//!   machine's (the daemon's thread held off its core), not the scene's work.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -16,7 +19,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, anyhow, bail};
 use clap::Parser;
-use palpa::record::replay::{VerifyError, mesh_payload, read_recording_file, summarise, verify};
+use palpa::record::replay::{
+    StepTimes, VerifyError, mesh_payload, read_recording_file, summarise, verify_timed,
+};
 
 /// Exit statuses, as `--help` lists them.
 const EXIT_CODES: &str = "Exit status:
@@ -45,6 +50,11 @@ struct Args {
     /// 1: a difference; 3: the file is damaged or cut short, its readable part replays).
     #[arg(long)]
     verify: bool,
+    /// With --verify: time each replayed step on this machine and print the distribution, and the
+    /// replayed time of every tick the daemon recorded as a synchronicity miss (wall clock; not
+    /// part of what is compared).
+    #[arg(long, requires = "verify")]
+    step_times: bool,
     /// Publish the recorded feedback and mesh messages over iceoryx2 in real time.
     #[arg(long)]
     play: bool,
@@ -123,7 +133,7 @@ fn main() -> Result<()> {
     if args.verify {
         let work = std::env::temp_dir().join(format!("palpa-replay-{}", std::process::id()));
         let terminal = std::io::stderr().is_terminal();
-        let result = verify(&recording, &work, |tick, last| {
+        let result = verify_timed(&recording, &work, |tick, last| {
             if terminal {
                 let done = (tick as f64 / last.max(1) as f64 * 40.0) as usize;
                 eprint!(
@@ -138,6 +148,10 @@ fn main() -> Result<()> {
         }
         let _ = std::fs::remove_dir_all(&work);
         let damage = damage_of(&recording, &args.file);
+        if let (Ok((_, times)), true) = (&result, args.step_times) {
+            print_step_times(times);
+        }
+        let result = result.map(|(report, _)| report);
         match (result, damage) {
             (Ok(report), None) => println!(
                 "verify: OK — {} ticks replayed, {} feedback and {} mesh messages identical (digest {:016x})",
@@ -331,4 +345,38 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
         );
     }
     Ok(())
+}
+
+/// `--step-times`: the replayed steps' distribution, and the ticks the daemon missed.
+fn print_step_times(times: &StepTimes) {
+    println!(
+        "step times: {} steps replayed here, mean {:.1} µs, median {:.0}, p99 {:.0}, p99.9 {:.0}, max {:.1} µs (period {:.0} µs)",
+        times.ticks(),
+        times.mean_us(),
+        times.quantile_us(0.5),
+        times.quantile_us(0.99),
+        times.quantile_us(0.999),
+        times.max_us,
+        times.period_us
+    );
+    let misses = &times.at_misses_us;
+    if misses.is_empty() {
+        println!("step times: no tick was recorded as a synchronicity miss");
+        return;
+    }
+    let mut sorted = misses.clone();
+    sorted.sort_by(f64::total_cmp);
+    let longest = sorted[sorted.len() - 1];
+    let within = sorted.iter().filter(|&&us| us <= times.period_us).count();
+    println!(
+        "step times: the {} ticks recorded as synchronicity misses replay in median {:.1} µs, at most {:.1} µs; {within} of them within the period{}",
+        misses.len(),
+        sorted[sorted.len() / 2],
+        longest,
+        if within == misses.len() {
+            " (not the scene's work as replayed here: the machine or IPC slowed those ticks)"
+        } else {
+            ""
+        }
+    );
 }
