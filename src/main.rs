@@ -76,6 +76,11 @@ enum Command {
         /// serve --timings`).
         #[arg(long, value_name = "FILE.csv")]
         timings: Option<PathBuf>,
+        /// Have the daemon record the session to FILE.mcap (see `palpa serve --record`; check it
+        /// with `palpa-replay FILE.mcap --verify`).
+        #[cfg(feature = "record")]
+        #[arg(long, value_name = "FILE.mcap")]
+        record: Option<PathBuf>,
         /// Show the session live to Foxglove on [HOST:]PORT (see `palpa serve --live`).
         #[cfg(feature = "live")]
         #[arg(long, value_name = "[HOST:]PORT", value_parser = palpa::record::live::address_argument)]
@@ -185,16 +190,25 @@ fn main() -> Result<()> {
             scene,
             rt,
             timings,
+            #[cfg(feature = "record")]
+            record,
             #[cfg(feature = "live")]
             live,
         } => demo(
             duration,
             &scene,
-            (rt, timings.as_deref()),
-            #[cfg(feature = "live")]
-            live.as_deref(),
-            #[cfg(not(feature = "live"))]
-            None,
+            DemoDaemon {
+                rt,
+                timings: timings.as_deref(),
+                #[cfg(feature = "record")]
+                record: record.as_deref(),
+                #[cfg(not(feature = "record"))]
+                record: None,
+                #[cfg(feature = "live")]
+                live: live.as_deref(),
+                #[cfg(not(feature = "live"))]
+                live: None,
+            },
         ),
     }
 }
@@ -637,13 +651,17 @@ fn serve(args: ServeArgs) -> Result<()> {
     Ok(())
 }
 
+/// What `palpa demo` passes on to its daemon (`palpa serve`'s options of the same names).
 #[cfg(feature = "ipc")]
-fn demo(
-    duration: f64,
-    scene_name: &str,
-    (rt, timings): (bool, Option<&Path>),
-    live: Option<&str>,
-) -> Result<()> {
+struct DemoDaemon<'a> {
+    rt: bool,
+    timings: Option<&'a Path>,
+    record: Option<&'a Path>,
+    live: Option<&'a str>,
+}
+
+#[cfg(feature = "ipc")]
+fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<()> {
     use iceoryx2::prelude::PortFactory;
     use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
     use palpa::ipc::services::{IpcError, create_node, stats_service};
@@ -655,12 +673,23 @@ fn demo(
     if !(duration.is_finite() && duration > 0.0) {
         bail!("--duration must be > 0");
     }
+    let DemoDaemon {
+        rt,
+        timings,
+        record,
+        live,
+    } = daemon_options;
     let prefix = format!("palpa_demo_{}", std::process::id());
     let scene = scene_from(Some(Path::new(scene_name)))?;
-    // A timings path the daemon could not write is refused here, before anything starts.
+    // A timings or recording path the daemon could not write is refused here, before anything
+    // starts.
     if let Some(path) = timings {
         std::fs::File::create(path)
             .with_context(|| format!("cannot create the timings file {}", path.display()))?;
+    }
+    if let Some(path) = record {
+        std::fs::File::create(path)
+            .with_context(|| format!("cannot create the recording {}", path.display()))?;
     }
     // The default organ keeps its hand-placed palpation; another scene gets a device per IPC tool.
     let devices = if scene.source == palpa::scene::DEFAULT_SCENE {
@@ -677,10 +706,13 @@ fn demo(
     let exe = std::env::current_exe().context("cannot find the palpa executable")?;
     let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}{}`) and {} simulated Geomagic Touch ({})",
+        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}{}{}`) and {} simulated Geomagic Touch ({})",
         if rt { " --rt" } else { "" },
         timings
             .map(|p| format!(" --timings {}", p.display()))
+            .unwrap_or_default(),
+        record
+            .map(|p| format!(" --record {}", p.display()))
             .unwrap_or_default(),
         live.map(|a| format!(" --live {a}")).unwrap_or_default(),
         devices.len(),
@@ -695,6 +727,10 @@ fn demo(
     }
     if let Some(path) = timings {
         serve_args.push("--timings".into());
+        serve_args.push(path.into());
+    }
+    if let Some(path) = record {
+        serve_args.push("--record".into());
         serve_args.push(path.into());
     }
     if let Some(address) = live {

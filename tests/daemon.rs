@@ -428,6 +428,7 @@ fn number_after(text: &str, marker: &str) -> u64 {
 fn demo_drives_both_tools_of_the_laparoscopy_scene() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let timings = temp("demo-timings.csv");
+    let recording = temp("demo-recording.mcap");
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args([
             "demo",
@@ -438,6 +439,8 @@ fn demo_drives_both_tools_of_the_laparoscopy_scene() {
             "--timings",
         ])
         .arg(&timings)
+        .arg("--record")
+        .arg(&recording)
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
@@ -470,6 +473,23 @@ fn demo_drives_both_tools_of_the_laparoscopy_scene() {
         .sum();
     assert_eq!(counted, ticks, "{csv}");
     let _ = std::fs::remove_file(&timings);
+    // `--record` went on to the daemon too: the session replays bit for bit, every tick of it.
+    let out = Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+        .arg(&recording)
+        .args(["--verify", "--step-times"])
+        .output()
+        .unwrap();
+    let replayed = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{replayed}");
+    assert!(
+        replayed.contains(&format!("verify: OK — {ticks} ticks replayed")),
+        "{replayed}"
+    );
+    assert!(
+        replayed.contains(&format!("step times: {ticks} steps replayed here")),
+        "{replayed}"
+    );
+    let _ = std::fs::remove_file(&recording);
     // A scene name that is neither a file nor built in is refused, naming the built-in ones.
     let out = Command::new(env!("CARGO_BIN_EXE_palpa"))
         .args(["demo", "--scene", "no_such_scene"])
