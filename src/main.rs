@@ -661,36 +661,114 @@ struct DemoDaemon<'a> {
 }
 
 #[cfg(feature = "ipc")]
+impl DemoDaemon<'_> {
+    /// Refuses, before anything starts, a timings or recording path the daemon could not write.
+    fn check_paths(&self) -> Result<()> {
+        if let Some(path) = self.timings {
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create the timings file {}", path.display()))?;
+        }
+        if let Some(path) = self.record {
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create the recording {}", path.display()))?;
+        }
+        Ok(())
+    }
+
+    /// `palpa serve`'s arguments for `scene_name` under `prefix`.
+    fn serve_args(&self, prefix: &str, scene_name: &str) -> Vec<std::ffi::OsString> {
+        let mut args: Vec<std::ffi::OsString> = ["serve", "--prefix", prefix, scene_name]
+            .into_iter()
+            .map(Into::into)
+            .collect();
+        if self.rt {
+            args.push("--rt".into());
+        }
+        for (flag, path) in [("--timings", self.timings), ("--record", self.record)] {
+            if let Some(path) = path {
+                args.extend([flag.into(), path.into()]);
+            }
+        }
+        if let Some(address) = self.live {
+            args.extend(["--live".into(), address.into()]);
+        }
+        args
+    }
+
+    /// Where to open the live view, when there is one.
+    fn announce_live(&self) -> Result<()> {
+        #[cfg(feature = "live")]
+        if let Some(address) = self.live {
+            use palpa::record::live::{parse_address, viewer_url};
+            let parsed = parse_address(address).map_err(|e| anyhow::anyhow!(e))?;
+            println!(
+                "palpa demo: live view: open {} in Foxglove (Open connection, Foxglove WebSocket)",
+                viewer_url(parsed)
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The demo's daemon process: stopped with SIGTERM and waited for when dropped, so that a demo
+/// ending early on an error leaves no daemon behind.
+#[cfg(feature = "ipc")]
+struct DaemonProcess(Option<std::process::Child>);
+
+#[cfg(feature = "ipc")]
+impl DaemonProcess {
+    /// Starts `palpa serve` with `args`, its standard output piped.
+    fn start(args: &[std::ffi::OsString]) -> Result<Self> {
+        let exe = std::env::current_exe().context("cannot find the palpa executable")?;
+        let child = std::process::Command::new(&exe)
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .context("cannot start palpa serve")?;
+        Ok(Self(Some(child)))
+    }
+
+    /// Stops the daemon (SIGTERM: it finishes its recording and prints its summary) and returns
+    /// the last line it printed.
+    fn stop(mut self) -> Result<Option<String>> {
+        let Some(child) = self.0.take() else {
+            return Ok(None);
+        };
+        // SAFETY: kill(2) on our own child.
+        unsafe {
+            libc::kill(child.id() as i32, libc::SIGTERM);
+        }
+        let output = child.wait_with_output().context("waiting for the daemon")?;
+        Ok(String::from_utf8_lossy(&output.stdout)
+            .lines()
+            .last()
+            .map(str::to_string))
+    }
+}
+
+#[cfg(feature = "ipc")]
+impl Drop for DaemonProcess {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.0.take() {
+            // SAFETY: kill(2) on our own child.
+            unsafe {
+                libc::kill(child.id() as i32, libc::SIGTERM);
+            }
+            let _ = child.wait();
+        }
+    }
+}
+
+#[cfg(feature = "ipc")]
 fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<()> {
-    use iceoryx2::prelude::PortFactory;
-    use palpa::device::run::{DeviceOptions, DeviceReport, devices_for_scene, run_device};
-    use palpa::ipc::services::{IpcError, create_node, stats_service};
-    use std::io::{IsTerminal, Write};
-    use std::process::{Command as Process, Stdio};
-    use std::sync::Arc;
-    use std::sync::atomic::AtomicBool;
+    use palpa::device::run::{DeviceOptions, devices_for_scene};
 
     if !(duration.is_finite() && duration > 0.0) {
         bail!("--duration must be > 0");
     }
-    let DemoDaemon {
-        rt,
-        timings,
-        record,
-        live,
-    } = daemon_options;
     let prefix = format!("palpa_demo_{}", std::process::id());
     let scene = scene_from(Some(Path::new(scene_name)))?;
-    // A timings or recording path the daemon could not write is refused here, before anything
-    // starts.
-    if let Some(path) = timings {
-        std::fs::File::create(path)
-            .with_context(|| format!("cannot create the timings file {}", path.display()))?;
-    }
-    if let Some(path) = record {
-        std::fs::File::create(path)
-            .with_context(|| format!("cannot create the recording {}", path.display()))?;
-    }
+    daemon_options.check_paths()?;
     // The default organ keeps its hand-placed palpation; another scene gets a device per IPC tool.
     let devices = if scene.source == palpa::scene::DEFAULT_SCENE {
         vec![DeviceOptions::palpating_default_organ(&prefix, duration)]
@@ -703,68 +781,68 @@ fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<(
             scene.name
         );
     }
-    let exe = std::env::current_exe().context("cannot find the palpa executable")?;
+    let serve_args = daemon_options.serve_args(&prefix, scene_name);
     let tools: Vec<&str> = devices.iter().map(|d| d.tool.as_str()).collect();
     println!(
-        "palpa demo: starting the daemon (`palpa serve --prefix {prefix} {scene_name}{}{}{}{}`) and {} simulated Geomagic Touch ({})",
-        if rt { " --rt" } else { "" },
-        timings
-            .map(|p| format!(" --timings {}", p.display()))
-            .unwrap_or_default(),
-        record
-            .map(|p| format!(" --record {}", p.display()))
-            .unwrap_or_default(),
-        live.map(|a| format!(" --live {a}")).unwrap_or_default(),
+        "palpa demo: starting the daemon (`palpa {}`) and {} simulated Geomagic Touch ({})",
+        serve_args
+            .iter()
+            .map(|a| a.to_string_lossy())
+            .collect::<Vec<_>>()
+            .join(" "),
         devices.len(),
         tools.join(", ")
     );
-    let mut serve_args: Vec<std::ffi::OsString> = ["serve", "--prefix", &prefix, scene_name]
-        .into_iter()
-        .map(Into::into)
-        .collect();
-    if rt {
-        serve_args.push("--rt".into());
+    daemon_options.announce_live()?;
+    let daemon = DaemonProcess::start(&serve_args)?;
+    let reports = run_demo_devices(&devices, &prefix)?;
+    let daemon_summary = daemon.stop()?;
+    for (options, report) in devices.iter().zip(reports) {
+        let report = report.map_err(|e| anyhow::anyhow!("device {}: {e}", options.tool))?;
+        println!(
+            "palpa demo: {}: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N; touching tissue in {} answers ({:.0} %)",
+            options.tool,
+            report.poses_sent,
+            report.latencies_us.len(),
+            report.lost(),
+            report.latency_percentile(0.5),
+            report.latency_percentile(0.99),
+            report.latency_percentile(0.999),
+            report.max_force,
+            report.answers_in_contact,
+            100.0 * report.answers_in_contact as f64 / report.latencies_us.len().max(1) as f64
+        );
     }
-    if let Some(path) = timings {
-        serve_args.push("--timings".into());
-        serve_args.push(path.into());
+    if let Some(last) = daemon_summary {
+        println!("{last}");
     }
-    if let Some(path) = record {
-        serve_args.push("--record".into());
-        serve_args.push(path.into());
-    }
-    if let Some(address) = live {
-        #[cfg(feature = "live")]
-        {
-            use palpa::record::live::{parse_address, viewer_url};
-            let parsed = parse_address(address).map_err(|e| anyhow::anyhow!(e))?;
-            println!(
-                "palpa demo: live view: open {} in Foxglove (Open connection, Foxglove WebSocket)",
-                viewer_url(parsed)
-            );
-        }
-        serve_args.extend(["--live".into(), address.into()]);
-    }
-    let daemon = Process::new(&exe)
-        .args(&serve_args)
-        .stdout(Stdio::piped())
-        .spawn()
-        .context("cannot start palpa serve")?;
+    Ok(())
+}
+
+/// Runs the demo's devices until their paths end: the first on this thread, printing once a second
+/// its status, the daemon's synchronicity misses (from its statistics service under `prefix`) and
+/// the other devices' last force and contacts; every other device on a thread of its own. Each
+/// device's report, in order.
+#[cfg(feature = "ipc")]
+fn run_demo_devices(
+    devices: &[palpa::device::run::DeviceOptions],
+    prefix: &str,
+) -> Result<Vec<Result<palpa::device::run::DeviceReport, String>>> {
+    use iceoryx2::prelude::PortFactory;
+    use palpa::device::run::{DeviceStatus, run_device};
+    use palpa::ipc::services::{IpcError, create_node, stats_service};
+    use std::io::{IsTerminal, Write};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::{Arc, Mutex};
+
     let node = create_node()?;
-    let stats = stats_service(&node, &prefix)?;
+    let stats = stats_service(&node, prefix)?;
     let stats = stats
         .subscriber_builder()
         .create()
         .map_err(|e| IpcError::port(stats.name(), "subscriber", e))?;
     let stop = Arc::new(AtomicBool::new(false));
-    // Every device but the first on a thread of its own, leaving its last status for the first
-    // device's status line.
-    let latest = Arc::new(std::sync::Mutex::new(vec![
-        None::<
-            palpa::device::run::DeviceStatus,
-        >;
-        devices.len()
-    ]));
+    let latest = Arc::new(Mutex::new(vec![None::<DeviceStatus>; devices.len()]));
     let others: Vec<_> = devices[1..]
         .iter()
         .cloned()
@@ -785,7 +863,7 @@ fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<(
         .collect();
     let terminal = std::io::stdout().is_terminal();
     let mut misses = 0u64;
-    let first = run_device(&devices[0], stop.clone(), |status| {
+    let first = run_device(&devices[0], stop, |status| {
         while let Ok(Some(sample)) = stats.receive() {
             misses = sample.payload().synchronicity_misses;
         }
@@ -821,7 +899,7 @@ fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<(
     if terminal {
         println!();
     }
-    let mut reports: Vec<Result<DeviceReport, String>> = vec![first.map_err(|e| e.to_string())];
+    let mut reports = vec![first.map_err(|e| e.to_string())];
     for handle in others {
         reports.push(match handle {
             Ok(handle) => handle
@@ -830,34 +908,7 @@ fn demo(duration: f64, scene_name: &str, daemon_options: DemoDaemon) -> Result<(
             Err(e) => Err(format!("cannot start the device's thread: {e}")),
         });
     }
-    // SAFETY: kill(2) on our own child.
-    unsafe {
-        libc::kill(daemon.id() as i32, libc::SIGTERM);
-    }
-    let output = daemon
-        .wait_with_output()
-        .context("waiting for the daemon")?;
-    for (options, report) in devices.iter().zip(reports) {
-        let report = report.map_err(|e| anyhow::anyhow!("device {}: {e}", options.tool))?;
-        println!(
-            "palpa demo: {}: {} poses sent, {} answered ({} lost); round trip median {:.0} µs, p99 {:.0} µs, p99.9 {:.0} µs; max force {:.3} N; touching tissue in {} answers ({:.0} %)",
-            options.tool,
-            report.poses_sent,
-            report.latencies_us.len(),
-            report.lost(),
-            report.latency_percentile(0.5),
-            report.latency_percentile(0.99),
-            report.latency_percentile(0.999),
-            report.max_force,
-            report.answers_in_contact,
-            100.0 * report.answers_in_contact as f64 / report.latencies_us.len().max(1) as f64
-        );
-    }
-    let daemon_out = String::from_utf8_lossy(&output.stdout);
-    if let Some(last) = daemon_out.lines().last() {
-        println!("{last}");
-    }
-    Ok(())
+    Ok(reports)
 }
 
 /// One line per pair of bodies whose surfaces cross where they start (see
