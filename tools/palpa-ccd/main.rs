@@ -28,8 +28,8 @@ mod query_file;
 use palpa::collision::ccd::{
     CcdHit, CcdSettings, edge_edge_time_of_impact, vertex_face_time_of_impact,
 };
-use query_file::{Kind, Query, parse_query_file};
-use std::io::Write;
+use query_file::{Kind, Query, QueryFileError, parse_query_file};
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -65,14 +65,42 @@ fn main() -> ExitCode {
     }
     match run(&paths, per_query) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("palpa-ccd: {message}");
+        Err(error) => {
+            eprintln!("palpa-ccd: {error}");
             ExitCode::FAILURE
         }
     }
 }
 
-fn run(args: &[String], per_query: bool) -> Result<(), String> {
+/// Why a run stopped. Each message names the file (as given or found) where there is one, and is
+/// the whole message, the cause included, so no variant has a `#[source]` that a printer of the
+/// error chain would repeat. (A thiserror enum rather than `anyhow`: this binary is built without
+/// the `cli` feature too, where `anyhow` is not a dependency.)
+#[derive(Debug, thiserror::Error)]
+enum CcdError {
+    #[error("{}: cannot open: {error}", path.display())]
+    Open { path: PathBuf, error: io::Error },
+    #[error("{}: cannot list: {error}", path.display())]
+    List { path: PathBuf, error: io::Error },
+    #[error("{}: no *.csv query file in this folder", path.display())]
+    NoQueryFile { path: PathBuf },
+    #[error(
+        "{}: cannot tell the query kind: the file's folder must be named vertex-face or edge-edge",
+        path.display()
+    )]
+    UnknownKind { path: PathBuf },
+    #[error("{}: cannot read: {error}", path.display())]
+    Read { path: PathBuf, error: io::Error },
+    #[error("{}: {error}", path.display())]
+    Parse {
+        path: PathBuf,
+        error: QueryFileError,
+    },
+    #[error("cannot write to standard output: {error}")]
+    Write { error: io::Error },
+}
+
+fn run(args: &[String], per_query: bool) -> Result<(), CcdError> {
     // Every file and its kind first, so that a wrong argument fails before any output.
     let mut files = Vec::new();
     for arg in args {
@@ -81,7 +109,7 @@ fn run(args: &[String], per_query: bool) -> Result<(), String> {
     let files = files
         .into_iter()
         .map(|path| Ok((kind_of(&path)?, path)))
-        .collect::<Result<Vec<_>, String>>()?;
+        .collect::<Result<Vec<_>, CcdError>>()?;
     let settings = CcdSettings::default();
     let mut out = std::io::stdout().lock();
     let several = files.len() > 1;
@@ -89,9 +117,14 @@ fn run(args: &[String], per_query: bool) -> Result<(), String> {
     let mut all_times = Vec::new();
     let mut bulk_ns = 0.0;
     for (kind, path) in files {
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-        let queries = parse_query_file(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(&path).map_err(|error| CcdError::Read {
+            path: path.clone(),
+            error,
+        })?;
+        let queries = parse_query_file(&text).map_err(|error| CcdError::Parse {
+            path: path.clone(),
+            error,
+        })?;
         let (report, times) = evaluate(kind, &queries, &settings);
         if per_query {
             for (index, (q, ns)) in queries.iter().zip(&times).enumerate() {
@@ -119,11 +152,11 @@ fn run(args: &[String], per_query: bool) -> Result<(), String> {
 
 /// Writes and flushes one line (so that a long run shows its progress); false when the reader has
 /// gone (`palpa-ccd … | head`): nothing more to say.
-fn write_line(out: &mut impl Write, line: &str) -> Result<bool, String> {
+fn write_line(out: &mut impl Write, line: &str) -> Result<bool, CcdError> {
     match writeln!(out, "{line}").and_then(|()| out.flush()) {
         Ok(()) => Ok(true),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(false),
-        Err(e) => Err(format!("cannot write to standard output: {e}")),
+        Err(e) if e.kind() == io::ErrorKind::BrokenPipe => Ok(false),
+        Err(error) => Err(CcdError::Write { error }),
     }
 }
 
@@ -136,9 +169,11 @@ fn mean(values: &[f64]) -> f64 {
 }
 
 /// Adds `path` if it is a file, or the `*.csv` files under it, recursively in sorted order.
-fn collect_files(path: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
-    let metadata =
-        std::fs::metadata(path).map_err(|e| format!("{}: cannot open: {e}", path.display()))?;
+fn collect_files(path: &Path, files: &mut Vec<PathBuf>) -> Result<(), CcdError> {
+    let metadata = std::fs::metadata(path).map_err(|error| CcdError::Open {
+        path: path.to_path_buf(),
+        error,
+    })?;
     if !metadata.is_dir() {
         files.push(path.to_path_buf());
         return Ok(());
@@ -146,16 +181,18 @@ fn collect_files(path: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
     let before = files.len();
     walk(path, files)?;
     if files.len() == before {
-        return Err(format!(
-            "{}: no *.csv query file in this folder",
-            path.display()
-        ));
+        return Err(CcdError::NoQueryFile {
+            path: path.to_path_buf(),
+        });
     }
     Ok(())
 }
 
-fn walk(dir: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
-    let read_error = |e: std::io::Error| format!("{}: cannot list: {e}", dir.display());
+fn walk(dir: &Path, files: &mut Vec<PathBuf>) -> Result<(), CcdError> {
+    let read_error = |error: io::Error| CcdError::List {
+        path: dir.to_path_buf(),
+        error,
+    };
     let mut entries = std::fs::read_dir(dir)
         .map_err(read_error)?
         .map(|entry| entry.map(|e| e.path()))
@@ -174,7 +211,7 @@ fn walk(dir: &Path, files: &mut Vec<PathBuf>) -> Result<(), String> {
 }
 
 /// The kind of a file's queries, from the name of its folder.
-fn kind_of(path: &Path) -> Result<Kind, String> {
+fn kind_of(path: &Path) -> Result<Kind, CcdError> {
     let folder = path
         .parent()
         .and_then(|p| p.file_name())
@@ -182,10 +219,9 @@ fn kind_of(path: &Path) -> Result<Kind, String> {
     match folder {
         Some("vertex-face") => Ok(Kind::VertexFace),
         Some("edge-edge") => Ok(Kind::EdgeEdge),
-        _ => Err(format!(
-            "{}: cannot tell the query kind: the file's folder must be named vertex-face or edge-edge",
-            path.display()
-        )),
+        _ => Err(CcdError::UnknownKind {
+            path: path.to_path_buf(),
+        }),
     }
 }
 
