@@ -475,8 +475,6 @@ fn run(
 
 #[cfg(feature = "ipc")]
 fn serve(args: ServeArgs) -> Result<()> {
-    use palpa::daemon::input::InputLimits;
-    use palpa::daemon::serve::{ServeOptions, serve};
     use std::sync::Arc;
     use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -491,130 +489,32 @@ fn serve(args: ServeArgs) -> Result<()> {
         )),
         None => None,
     };
-    let options = ServeOptions {
-        prefix: args.prefix.clone(),
-        duration: args.duration,
-        lockstep: args.lockstep,
-        realtime: args.rt,
-        display_rate_hz: args.display_rate,
-        keyframe_every_s: args.keyframe_every,
-        limits: InputLimits {
-            max_speed: args.max_speed,
-            stale_after_ticks: ((args.stale_after_ms as f64 * 1e-3 / scene.world.dt).round()
-                as u64)
-                .max(1),
-            ..InputLimits::default()
-        },
-        inject_ipc_faults: args.inject_ipc_faults,
-    };
+    let options = serve_options(&args, &scene);
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = stop.clone();
     ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
         .context("cannot install the Ctrl-C/SIGTERM handler")?;
-    let world = World::from_scene(&scene);
-    warn_of_crossings(&world, "warning: ");
-    let tools: Vec<&str> = world
-        .tools
-        .iter()
-        .filter(|t| matches!(t.input, palpa::tool::ToolInput::Ipc))
-        .map(|t| t.name.as_str())
-        .collect();
-    println!(
-        "palpa serve: {} — prefix \"{}\", {} mode, tools over IPC: [{}]",
-        scene.name,
-        args.prefix,
-        if args.lockstep {
-            "lockstep"
-        } else {
-            "real-time 1 kHz"
-        },
-        tools.join(", ")
-    );
-    println!("  systems: {}", world.systems().names().join(", "));
-    drop(world);
-    let sim_stop = stop.clone();
+    announce_serve(&scene, &args);
     #[cfg(feature = "record")]
     let record = args.record.clone();
-    // The live view listens before the loop starts, so its address can be printed (and a wrong one
-    // refused) at once.
+    #[cfg(not(feature = "record"))]
+    let record: Option<PathBuf> = None;
     #[cfg(feature = "live")]
-    let live = match &args.live {
-        Some(text) => {
-            use palpa::record::live::{LiveSettings, LiveView, parse_address};
-            let address = parse_address(text).map_err(|e| anyhow::anyhow!(e))?;
-            let live =
-                LiveView::start(address, &World::from_scene(&scene), LiveSettings::default())?;
-            println!(
-                "palpa serve: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
-                live.url()
-            );
-            Some(live)
-        }
-        None => None,
-    };
+    let live = start_live_view(args.live.as_deref(), &scene)?;
     let handle = std::thread::Builder::new()
         .name("palpa-sim".into())
         .spawn(move || -> Result<_, String> {
-            #[cfg(feature = "record")]
-            let sink = match &record {
-                Some(path) => {
-                    use palpa::record::recorder::{Recorder, RecorderSettings, SessionInfo};
-                    let session = SessionInfo {
-                        mode: "serve".into(),
-                        display_rate_hz: options.display_rate_hz,
-                        keyframe_every_s: options.keyframe_every_s,
-                    };
-                    let world = World::from_scene(&scene);
-                    palpa::daemon::sink::RecordSink::to(Recorder::start(
-                        path,
-                        &scene,
-                        &world,
-                        &session,
-                        RecorderSettings::default(),
-                    )
-                    .map_err(|e| e.to_string())?)
-                }
-                None => palpa::daemon::sink::RecordSink::none(),
-            };
-            #[cfg(not(feature = "record"))]
-            let sink = palpa::daemon::sink::RecordSink::none();
+            let sink = record_sink(record.as_deref(), &scene, &options)?;
             #[cfg(feature = "live")]
             let sink = match live {
                 Some(live) => sink.with_live(live),
                 None => sink,
             };
-            let served = serve(&scene, &options, sim_stop, &sink).map_err(|e| e.to_string());
+            let served = palpa::daemon::serve::serve(&scene, &options, stop, &sink)
+                .map_err(|e| e.to_string());
             // The recording is finished whichever way the loop ended (and, should this thread
             // panic, by the recorder's Drop while unwinding).
-            #[cfg(feature = "record")]
-            let (recorded, live) = sink.finish_all();
-            #[cfg(feature = "record")]
-            if let Some(live) = live {
-                let total: u64 = live.messages.values().sum();
-                let scenes = live
-                    .messages
-                    .get(palpa::record::visual::TOPIC_SCENE_UPDATE)
-                    .copied()
-                    .unwrap_or(0);
-                println!(
-                    "palpa serve: live view published {total} messages ({scenes} scene updates) to {} viewers ({} records dropped)",
-                    live.viewers, live.dropped
-                );
-            }
-            #[cfg(feature = "record")]
-            match recorded {
-                Ok(Some(recording)) => {
-                    let total: u64 = recording.messages.values().sum();
-                    println!(
-                        "palpa serve: recorded {total} messages ({} dropped)",
-                        recording.dropped
-                    );
-                }
-                Ok(None) => {}
-                Err(e) if served.is_ok() => return Err(e.to_string()),
-                Err(e) => eprintln!("palpa serve: {e}"),
-            }
-            served
+            finish_sink(sink, served)
         })
         .context("cannot start the simulation thread")?;
     let summary = handle
@@ -649,6 +549,139 @@ fn serve(args: ServeArgs) -> Result<()> {
         bail!("palpa serve: stopped: {fatal}");
     }
     Ok(())
+}
+
+/// The daemon's options from `palpa serve`'s arguments (the staleness limit in ticks of `scene`).
+#[cfg(feature = "ipc")]
+fn serve_options(args: &ServeArgs, scene: &Scene) -> palpa::daemon::serve::ServeOptions {
+    use palpa::daemon::input::InputLimits;
+    palpa::daemon::serve::ServeOptions {
+        prefix: args.prefix.clone(),
+        duration: args.duration,
+        lockstep: args.lockstep,
+        realtime: args.rt,
+        display_rate_hz: args.display_rate,
+        keyframe_every_s: args.keyframe_every,
+        limits: InputLimits {
+            max_speed: args.max_speed,
+            stale_after_ticks: ((args.stale_after_ms as f64 * 1e-3 / scene.world.dt).round()
+                as u64)
+                .max(1),
+            ..InputLimits::default()
+        },
+        inject_ipc_faults: args.inject_ipc_faults,
+    }
+}
+
+/// What `palpa serve` is about to run: the scene, the prefix, the mode, the tools over IPC and
+/// the systems switched on (and a warning for bodies that start with their surfaces crossing).
+#[cfg(feature = "ipc")]
+fn announce_serve(scene: &Scene, args: &ServeArgs) {
+    let world = World::from_scene(scene);
+    warn_of_crossings(&world, "warning: ");
+    let tools: Vec<&str> = world
+        .tools
+        .iter()
+        .filter(|t| matches!(t.input, palpa::tool::ToolInput::Ipc))
+        .map(|t| t.name.as_str())
+        .collect();
+    println!(
+        "palpa serve: {} — prefix \"{}\", {} mode, tools over IPC: [{}]",
+        scene.name,
+        args.prefix,
+        if args.lockstep {
+            "lockstep"
+        } else {
+            "real-time 1 kHz"
+        },
+        tools.join(", ")
+    );
+    println!("  systems: {}", world.systems().names().join(", "));
+}
+
+/// The live view, listening before the loop starts so that its address can be printed (and a
+/// wrong one refused) at once.
+#[cfg(feature = "live")]
+fn start_live_view(
+    address: Option<&str>,
+    scene: &Scene,
+) -> Result<Option<palpa::record::live::LiveView>> {
+    use palpa::record::live::{LiveSettings, LiveView, parse_address};
+    let Some(text) = address else {
+        return Ok(None);
+    };
+    let address = parse_address(text).map_err(|e| anyhow::anyhow!(e))?;
+    let live = LiveView::start(address, &World::from_scene(scene), LiveSettings::default())?;
+    println!(
+        "palpa serve: live view on {} (open it in Foxglove: Open connection, Foxglove WebSocket)",
+        live.url()
+    );
+    Ok(Some(live))
+}
+
+/// Where the daemon's records go: a recording of the session to `path`, or nowhere.
+#[cfg(feature = "ipc")]
+fn record_sink(
+    path: Option<&Path>,
+    scene: &Scene,
+    options: &palpa::daemon::serve::ServeOptions,
+) -> Result<palpa::daemon::sink::RecordSink, String> {
+    #[cfg(feature = "record")]
+    if let Some(path) = path {
+        use palpa::record::recorder::{Recorder, RecorderSettings, SessionInfo};
+        let session = SessionInfo {
+            mode: "serve".into(),
+            display_rate_hz: options.display_rate_hz,
+            keyframe_every_s: options.keyframe_every_s,
+        };
+        let world = World::from_scene(scene);
+        let recorder = Recorder::start(path, scene, &world, &session, RecorderSettings::default())
+            .map_err(|e| e.to_string())?;
+        return Ok(palpa::daemon::sink::RecordSink::to(recorder));
+    }
+    let _ = (path, scene, options);
+    Ok(palpa::daemon::sink::RecordSink::none())
+}
+
+/// Finishes the recording and the live view after the loop, printing what each wrote; the loop's
+/// summary, or its error (or the recording's, when the loop ended well but its file could not be
+/// finished).
+#[cfg(feature = "ipc")]
+fn finish_sink(
+    sink: palpa::daemon::sink::RecordSink,
+    served: Result<palpa::daemon::serve::ServeSummary, String>,
+) -> Result<palpa::daemon::serve::ServeSummary, String> {
+    #[cfg(feature = "record")]
+    {
+        let (recorded, live) = sink.finish_all();
+        if let Some(live) = live {
+            let total: u64 = live.messages.values().sum();
+            let scenes = live
+                .messages
+                .get(palpa::record::visual::TOPIC_SCENE_UPDATE)
+                .copied()
+                .unwrap_or(0);
+            println!(
+                "palpa serve: live view published {total} messages ({scenes} scene updates) to {} viewers ({} records dropped)",
+                live.viewers, live.dropped
+            );
+        }
+        match recorded {
+            Ok(Some(recording)) => {
+                let total: u64 = recording.messages.values().sum();
+                println!(
+                    "palpa serve: recorded {total} messages ({} dropped)",
+                    recording.dropped
+                );
+            }
+            Ok(None) => {}
+            Err(e) if served.is_ok() => return Err(e.to_string()),
+            Err(e) => eprintln!("palpa serve: {e}"),
+        }
+    }
+    #[cfg(not(feature = "record"))]
+    drop(sink);
+    served
 }
 
 /// What `palpa demo` passes on to its daemon (`palpa serve`'s options of the same names).
