@@ -10,8 +10,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
-use iceoryx2::prelude::PortFactory;
+use iceoryx2::prelude::{Node, PortFactory, ipc};
+use iceoryx2::service::port_factory::publish_subscribe;
 
 use super::model::{Device, DeviceSpec, Hand};
 use crate::Vec3;
@@ -419,21 +422,25 @@ impl Tally {
     }
 }
 
-/// Runs the device until the duration is over or `stop` is set; `status` is called about once a
-/// second of device time.
-pub fn run_device(
-    options: &DeviceOptions,
-    stop: Arc<AtomicBool>,
-    mut status: impl FnMut(&DeviceStatus),
-) -> Result<DeviceReport, IpcError> {
-    let script = match &options.path {
-        HandPath::Script(keys) => Some(ToolInput::Script(keys.clone())),
-        HandPath::BuiltIn { .. } => None,
-    };
-    // The hand's position and jaw opening at `t`; the handle's orientation (the device renders
-    // forces only, so the hand's orientation is sent as it is meant).
-    let pose_at = |t: f64| -> ((Vec3, f64), [f64; 4]) {
-        match (&options.path, &script) {
+/// Where the device's hand goes: a script of keyframes, or a built-in motion.
+struct HandSampler<'a> {
+    path: &'a HandPath,
+    script: Option<ToolInput>,
+}
+
+impl<'a> HandSampler<'a> {
+    fn new(path: &'a HandPath) -> Self {
+        let script = match path {
+            HandPath::Script(keys) => Some(ToolInput::Script(keys.clone())),
+            HandPath::BuiltIn { .. } => None,
+        };
+        Self { path, script }
+    }
+
+    /// The hand's position and jaw opening at `t`, and the handle's orientation (the device
+    /// renders forces only, so the hand's orientation is sent as it is meant).
+    fn pose_at(&self, t: f64) -> ((Vec3, f64), [f64; 4]) {
+        match (self.path, &self.script) {
             (_, Some(input)) => {
                 let (pose, jaw) = input.sample(t).unwrap_or_default();
                 let q = pose.world_from_tool.quaternion();
@@ -445,47 +452,141 @@ pub fn run_device(
             ),
             (HandPath::Script(_), None) => unreachable!("a script path always has its input"),
         }
-    };
-    let target_at = |t: f64| -> (Vec3, f64) { pose_at(t).0 };
-
-    let node = create_node()?;
-    let poses = pose_service(&node, &options.prefix, &options.tool)?;
-    let publisher = poses
-        .publisher_builder()
-        .create()
-        .map_err(|e| IpcError::port(poses.name(), "publisher", e))?;
-    let feedback = feedback_service(&node, &options.prefix, &options.tool)?;
-    let subscriber = feedback
-        .subscriber_builder()
-        .create()
-        .map_err(|e| IpcError::port(feedback.name(), "subscriber", e))?;
-    let received = |e| IpcError::transfer(feedback.name(), "receive", e);
-    let connected = |e| IpcError::transfer(poses.name(), "update connections", e);
-
-    // Wait for the daemon: its feedback publisher hands us the last feedback (history 1) once both
-    // ends are connected. Then make sure our first pose reaches its subscriber.
-    let waiting = Instant::now();
-    loop {
-        if subscriber.receive().map_err(received)?.is_some() {
-            break;
-        }
-        if stop.load(Ordering::Relaxed) {
-            return Ok(DeviceReport::default());
-        }
-        if waiting.elapsed() > Duration::from_secs(30) {
-            return Err(IpcError::NoDaemon {
-                prefix: options.prefix.clone(),
-            });
-        }
-        publisher.update_connections().map_err(connected)?;
-        std::thread::sleep(Duration::from_millis(1));
     }
-    publisher.update_connections().map_err(connected)?;
 
+    /// The hand's position at `t`.
+    fn position_at(&self, t: f64) -> Vec3 {
+        self.pose_at(t).0.0
+    }
+}
+
+/// The device's ports on its tool's services: poses out, feedback in (the ports first, so that
+/// they are dropped before their services and node).
+struct DevicePorts {
+    publisher: Publisher<ipc::Service, ToolPoseV1, ()>,
+    subscriber: Subscriber<ipc::Service, ToolFeedbackV1, ()>,
+    poses: publish_subscribe::PortFactory<ipc::Service, ToolPoseV1, ()>,
+    feedback: publish_subscribe::PortFactory<ipc::Service, ToolFeedbackV1, ()>,
+    _node: Node<ipc::Service>,
+}
+
+impl DevicePorts {
+    /// Opens (or creates) the pose and feedback services of `tool` under `prefix`, and the ports.
+    fn open(prefix: &str, tool: &str) -> Result<Self, IpcError> {
+        let node = create_node()?;
+        let poses = pose_service(&node, prefix, tool)?;
+        let publisher = poses
+            .publisher_builder()
+            .create()
+            .map_err(|e| IpcError::port(poses.name(), "publisher", e))?;
+        let feedback = feedback_service(&node, prefix, tool)?;
+        let subscriber = feedback
+            .subscriber_builder()
+            .create()
+            .map_err(|e| IpcError::port(feedback.name(), "subscriber", e))?;
+        Ok(Self {
+            publisher,
+            subscriber,
+            poses,
+            feedback,
+            _node: node,
+        })
+    }
+
+    fn connected(&self) -> Result<(), IpcError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| IpcError::transfer(self.poses.name(), "update connections", e))
+    }
+
+    /// Waits for the daemon: its feedback publisher hands over the last feedback (history 1) once
+    /// both ends are connected; then makes sure the first pose reaches its subscriber. False when
+    /// `stop` was set first; an error when no daemon answered within 30 s.
+    fn wait_for_daemon(&self, stop: &AtomicBool, prefix: &str) -> Result<bool, IpcError> {
+        let waiting = Instant::now();
+        loop {
+            if self.receive()?.is_some() {
+                break;
+            }
+            if stop.load(Ordering::Relaxed) {
+                return Ok(false);
+            }
+            if waiting.elapsed() > Duration::from_secs(30) {
+                return Err(IpcError::NoDaemon {
+                    prefix: prefix.to_string(),
+                });
+            }
+            self.connected()?;
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        self.connected()?;
+        Ok(true)
+    }
+
+    fn receive(
+        &self,
+    ) -> Result<Option<iceoryx2::sample::Sample<ipc::Service, ToolFeedbackV1, ()>>, IpcError> {
+        self.subscriber
+            .receive()
+            .map_err(|e| IpcError::transfer(self.feedback.name(), "receive", e))
+    }
+
+    fn send(&self, pose: ToolPoseV1) -> Result<(), IpcError> {
+        self.publisher
+            .send_copy(pose)
+            .map(|_| ())
+            .map_err(|e| IpcError::transfer(self.poses.name(), "send", e))
+    }
+
+    /// Every answer waiting, into `tally`.
+    fn take_answers(&self, tally: &mut Tally) -> Result<(), IpcError> {
+        while let Some(sample) = self.receive()? {
+            tally.take(sample.payload(), Instant::now());
+        }
+        Ok(())
+    }
+
+    /// Lockstep: waits until pose `seq` is answered (at most 10 s, or until `stop`).
+    fn await_answer(&self, tally: &mut Tally, seq: u64, stop: &AtomicBool) -> Result<(), IpcError> {
+        let give_up = Instant::now() + Duration::from_secs(10);
+        while tally.answered_up_to < seq
+            && Instant::now() < give_up
+            && !stop.load(Ordering::Relaxed)
+        {
+            self.take_answers(tally)?;
+            if tally.answered_up_to < seq {
+                std::thread::sleep(Duration::from_micros(10));
+            }
+        }
+        Ok(())
+    }
+
+    /// The answers that arrive within 50 ms after the last pose.
+    fn collect_last(&self, tally: &mut Tally) -> Result<(), IpcError> {
+        let settle = Instant::now() + Duration::from_millis(50);
+        while Instant::now() < settle {
+            self.take_answers(tally)?;
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Ok(())
+    }
+}
+
+/// Runs the device until the duration is over or `stop` is set; `status` is called about once a
+/// second of device time.
+pub fn run_device(
+    options: &DeviceOptions,
+    stop: Arc<AtomicBool>,
+    mut status: impl FnMut(&DeviceStatus),
+) -> Result<DeviceReport, IpcError> {
+    let hand = HandSampler::new(&options.path);
+    let ports = DevicePorts::open(&options.prefix, &options.tool)?;
+    if !ports.wait_for_daemon(&stop, &options.prefix)? {
+        return Ok(DeviceReport::default());
+    }
     let dt = 0.001;
     let ticks = (options.duration / dt).round() as u64;
-    let (start_position, _) = target_at(0.0);
-    let mut handle = Device::new(options.spec, Hand::default(), start_position);
+    let mut handle = Device::new(options.spec, Hand::default(), hand.position_at(0.0));
     let mut tally = Tally {
         sent_at: vec![Instant::now(); 1 << 14],
         latencies: Vec::with_capacity(ticks as usize),
@@ -512,8 +613,8 @@ pub fn run_device(
             break;
         }
         let t = tick as f64 * dt;
-        let ((target, jaw), orientation) = pose_at(t);
-        let (previous, _) = target_at(t - dt);
+        let ((target, jaw), orientation) = hand.pose_at(t);
+        let previous = hand.position_at(t - dt);
         handle.step(&target, &((target - previous) / dt), &tally.force, dt);
         let position = handle.measured_position();
         if !options.lockstep {
@@ -525,35 +626,20 @@ pub fn run_device(
         }
         let seq = tick;
         tally.mark_sent(seq);
-        publisher
-            .send_copy(ToolPoseV1 {
-                seq,
-                device_time_ns: monotonic_ns(),
-                position: position.into(),
-                orientation,
-                jaw,
-                buttons: 0,
-                reserved: 0,
-            })
-            .map_err(|e| IpcError::transfer(poses.name(), "send", e))?;
+        ports.send(ToolPoseV1 {
+            seq,
+            device_time_ns: monotonic_ns(),
+            position: position.into(),
+            orientation,
+            jaw,
+            buttons: 0,
+            reserved: 0,
+        })?;
         sent += 1;
         if options.lockstep {
-            let give_up = Instant::now() + Duration::from_secs(10);
-            while tally.answered_up_to < seq
-                && Instant::now() < give_up
-                && !stop.load(Ordering::Relaxed)
-            {
-                while let Some(sample) = subscriber.receive().map_err(received)? {
-                    tally.take(sample.payload(), Instant::now());
-                }
-                if tally.answered_up_to < seq {
-                    std::thread::sleep(Duration::from_micros(10));
-                }
-            }
+            ports.await_answer(&mut tally, seq, &stop)?;
         } else {
-            while let Some(sample) = subscriber.receive().map_err(received)? {
-                tally.take(sample.payload(), Instant::now());
-            }
+            ports.take_answers(&mut tally)?;
         }
         if options.keep_trace {
             trace.push(TraceRow {
@@ -576,14 +662,7 @@ pub fn run_device(
             tally.window.clear();
         }
     }
-    // Collect the last answers.
-    let settle = Instant::now() + Duration::from_millis(50);
-    while Instant::now() < settle {
-        while let Some(sample) = subscriber.receive().map_err(received)? {
-            tally.take(sample.payload(), Instant::now());
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    ports.collect_last(&mut tally)?;
     let mut latencies = tally.latencies;
     latencies.sort_by(f64::total_cmp);
     Ok(DeviceReport {
