@@ -1085,35 +1085,13 @@ impl Ctx<'_> {
     ) -> Result<AttachmentSpec, SceneError> {
         let a = table.get_ref();
         let name = self.name(a.name.as_ref(), format!("attachment{index}"))?;
-        let names = || {
-            bodies
-                .iter()
-                .map(|b| format!("`{}`", b.name))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        let find = |value: &Spanned<String>, key: &str| -> Result<usize, SceneError> {
-            bodies
-                .iter()
-                .position(|b| &b.name == value.get_ref())
-                .ok_or_else(|| {
-                    self.error(
-                        value.span(),
-                        format!(
-                            "`{key}` of attachment `{name}` names no body: found {:?}, expected one of {}",
-                            value.get_ref(),
-                            names()
-                        ),
-                    )
-                })
-        };
         let Some(body_value) = &a.body else {
             return Err(self.error(
                 table.span(),
                 format!("attachment `{name}` needs a `body` (the name of the body it ties)"),
             ));
         };
-        let body = find(body_value, "body")?;
+        let body = self.attachment_body(body_value, "body", &name, bodies)?;
         let Some(at_value) = &a.at else {
             return Err(self.error(
                 table.span(),
@@ -1126,41 +1104,101 @@ impl Ctx<'_> {
         let radius = self.number(a.radius.as_ref(), 0.01, "radius", Rule::Positive)?;
         let stiffness = self.number(a.stiffness.as_ref(), 50.0, "stiffness", Rule::Positive)?;
         let damping = self.number(a.damping.as_ref(), 0.5, "damping", Rule::NonNegative)?;
-        let to = match &a.to {
-            None => None,
-            Some(v) if v.get_ref() == "world" => None,
-            Some(v) => {
-                let o = find(v, "to")?;
-                if o == body {
-                    return Err(self.error(
-                        v.span(),
-                        format!(
-                            "attachment `{name}` ties body `{}` to itself",
-                            bodies[o].name
-                        ),
-                    ));
-                }
-                Some(o)
-            }
-        };
-        // The region, and its nodes' masses (the surface mass spread by area, as the body does).
+        let to = self.attachment_to(a.to.as_ref(), body, &name, bodies)?;
         let spec = &bodies[body];
-        let masses = |b: &BodySpec| -> Vec<f64> {
-            let areas = b.mesh.vertex_areas();
-            let total: f64 = areas.iter().sum();
-            let n = areas.len() as f64;
-            areas
-                .iter()
-                .map(|a| {
-                    if total > 0.0 {
-                        b.params.surface_mass * a / total
-                    } else {
-                        b.params.surface_mass / n
-                    }
-                })
-                .collect()
+        let region = self.attachment_region(table, &name, spec, &at, radius)?;
+        // The region's nodes' masses (the surface mass spread by area, as the body does).
+        let mass = node_masses(spec);
+        let region_mass: f64 = region.iter().map(|&i| mass[i as usize]).sum();
+        let ties: Vec<Tie> = region
+            .iter()
+            .map(|&i| {
+                let share = mass[i as usize] / region_mass;
+                Tie {
+                    node: i,
+                    other_node: to.map_or(WORLD, |o| nearest_node(&bodies[o], &world_of(spec, i))),
+                    stiffness: stiffness * share,
+                    damping: damping * share,
+                }
+            })
+            .collect();
+        self.check_attachment_steps(
+            table,
+            &name,
+            (stiffness, damping, region_mass),
+            to.map(|o| (&bodies[o], &ties[..])),
+            dt,
+        )?;
+        Ok(AttachmentSpec {
+            name,
+            body,
+            to,
+            ties,
+        })
+    }
+
+    /// The body an attachment's `key` names; an error listing the scene's bodies when none has
+    /// that name.
+    fn attachment_body(
+        &self,
+        value: &Spanned<String>,
+        key: &str,
+        name: &str,
+        bodies: &[BodySpec],
+    ) -> Result<usize, SceneError> {
+        bodies
+            .iter()
+            .position(|b| &b.name == value.get_ref())
+            .ok_or_else(|| {
+                let names = bodies
+                    .iter()
+                    .map(|b| format!("`{}`", b.name))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                self.error(
+                    value.span(),
+                    format!(
+                        "`{key}` of attachment `{name}` names no body: found {:?}, expected one of {names}",
+                        value.get_ref(),
+                    ),
+                )
+            })
+    }
+
+    /// What an attachment ties its body to: another body, or the world (`to` absent or `"world"`).
+    fn attachment_to(
+        &self,
+        value: Option<&Spanned<String>>,
+        body: usize,
+        name: &str,
+        bodies: &[BodySpec],
+    ) -> Result<Option<usize>, SceneError> {
+        let Some(v) = value.filter(|v| v.get_ref() != "world") else {
+            return Ok(None);
         };
-        let mass = masses(spec);
+        let o = self.attachment_body(v, "to", name, bodies)?;
+        if o == body {
+            return Err(self.error(
+                v.span(),
+                format!(
+                    "attachment `{name}` ties body `{}` to itself",
+                    bodies[o].name
+                ),
+            ));
+        }
+        Ok(Some(o))
+    }
+
+    /// The nodes of `spec` within `radius` of `at` (body frame), in index order; an error naming
+    /// the nearest node's distance when there is none.
+    fn attachment_region(
+        &self,
+        table: &Spanned<AttachmentSection>,
+        name: &str,
+        spec: &BodySpec,
+        at: &Vec3,
+        radius: f64,
+    ) -> Result<Vec<u32>, SceneError> {
         let region: Vec<u32> = (0..spec.mesh.positions_in_body.len() as u32)
             .filter(|&i| (spec.mesh.positions_in_body[i as usize] - at).norm() <= radius)
             .collect();
@@ -1179,45 +1217,28 @@ impl Ctx<'_> {
                 ),
             ));
         }
-        let region_mass: f64 = region.iter().map(|&i| mass[i as usize]).sum();
-        let world_of = |b: &BodySpec, i: usize| {
-            b.placement.position_in_world
-                + b.placement.world_from_body * b.mesh.positions_in_body[i]
-        };
-        let mut ties = Vec::with_capacity(region.len());
-        for &i in &region {
-            let other_node = match to {
-                None => WORLD,
-                Some(o) => {
-                    let x = world_of(spec, i as usize);
-                    let other = &bodies[o];
-                    let mut best = (f64::INFINITY, 0u32);
-                    for j in 0..other.mesh.positions_in_body.len() {
-                        let d = (world_of(other, j) - x).norm_squared();
-                        if d < best.0 {
-                            best = (d, j as u32);
-                        }
-                    }
-                    best.1
-                }
-            };
-            let share = mass[i as usize] / region_mass;
-            ties.push(Tie {
-                node: i,
-                other_node,
-                stiffness: stiffness * share,
-                damping: damping * share,
-            });
-        }
+        Ok(region)
+    }
 
-        // Explicit ties must be stable at dt on every node they pull: √(k/m) Δt and (c/m) Δt at
-        // most ATTACHMENT_STEP_LIMIT (on the region, k/m is the attachment's k/M).
+    /// Explicit ties must be stable at `dt` on every node they pull: √(k/m) Δt and (c/m) Δt at
+    /// most ATTACHMENT_STEP_LIMIT (on the region, k/m is the attachment's k/M; on the other body,
+    /// each node's sum of the ties that pull it over its mass). The error points at the key to
+    /// lower (the stiffness when both are past the limit).
+    fn check_attachment_steps(
+        &self,
+        table: &Spanned<AttachmentSection>,
+        name: &str,
+        (stiffness, damping, region_mass): (f64, f64, f64),
+        other: Option<(&BodySpec, &[Tie])>,
+        dt: f64,
+    ) -> Result<(), SceneError> {
+        let a = table.get_ref();
         let mut worst = (stiffness / region_mass).sqrt() * dt;
         let mut worst_damping = damping / region_mass * dt;
-        if let Some(o) = to {
-            let other_mass = masses(&bodies[o]);
+        if let Some((other, ties)) = other {
+            let other_mass = node_masses(other);
             let mut pull = vec![(0.0f64, 0.0f64); other_mass.len()];
-            for t in &ties {
+            for t in ties {
                 let p = &mut pull[t.other_node as usize];
                 p.0 += t.stiffness;
                 p.1 += t.damping;
@@ -1231,27 +1252,21 @@ impl Ctx<'_> {
             worst > ATTACHMENT_STEP_LIMIT,
             worst_damping > ATTACHMENT_STEP_LIMIT,
         );
-        if stiff || damped {
-            // The error points at the key to lower (the stiffness when both are past the limit).
-            let (what, key) = match (stiff, damped) {
-                (true, true) => ("too stiff and too damped", a.stiffness.as_ref()),
-                (true, false) => ("too stiff", a.stiffness.as_ref()),
-                _ => ("too damped", a.damping.as_ref()),
-            };
-            let span = key.map_or(table.span(), |s| s.span());
-            return Err(self.error(
-                span,
-                format!(
-                    "attachment `{name}` is {what} for dt = {dt} s on the nodes it ties: √(k/m)·dt = {worst:.3} and (c/m)·dt = {worst_damping:.3}, both must be at most {ATTACHMENT_STEP_LIMIT} (lower `stiffness` or `damping`, or widen `radius`)"
-                ),
-            ));
+        if !(stiff || damped) {
+            return Ok(());
         }
-        Ok(AttachmentSpec {
-            name,
-            body,
-            to,
-            ties,
-        })
+        let (what, key) = match (stiff, damped) {
+            (true, true) => ("too stiff and too damped", a.stiffness.as_ref()),
+            (true, false) => ("too stiff", a.stiffness.as_ref()),
+            _ => ("too damped", a.damping.as_ref()),
+        };
+        let span = key.map_or(table.span(), |s| s.span());
+        Err(self.error(
+            span,
+            format!(
+                "attachment `{name}` is {what} for dt = {dt} s on the nodes it ties: √(k/m)·dt = {worst:.3} and (c/m)·dt = {worst_damping:.3}, both must be at most {ATTACHMENT_STEP_LIMIT} (lower `stiffness` or `damping`, or widen `radius`)"
+            ),
+        ))
     }
 
     fn obstacle(
@@ -1325,6 +1340,42 @@ impl Ctx<'_> {
             static_friction,
         })
     }
+}
+
+/// The node masses of a body spec: its surface mass spread by area, as the body does (evenly when
+/// the mesh has no area).
+fn node_masses(b: &BodySpec) -> Vec<f64> {
+    let areas = b.mesh.vertex_areas();
+    let total: f64 = areas.iter().sum();
+    let n = areas.len() as f64;
+    areas
+        .iter()
+        .map(|a| {
+            if total > 0.0 {
+                b.params.surface_mass * a / total
+            } else {
+                b.params.surface_mass / n
+            }
+        })
+        .collect()
+}
+
+/// Node `i` of a body spec where the scene places it (world frame).
+fn world_of(b: &BodySpec, i: u32) -> Vec3 {
+    b.placement.position_in_world
+        + b.placement.world_from_body * b.mesh.positions_in_body[i as usize]
+}
+
+/// The node of `other` nearest `x` (world frame; the first of equals).
+fn nearest_node(other: &BodySpec, x: &Vec3) -> u32 {
+    let mut best = (f64::INFINITY, 0u32);
+    for j in 0..other.mesh.positions_in_body.len() as u32 {
+        let d = (world_of(other, j) - x).norm_squared();
+        if d < best.0 {
+            best = (d, j);
+        }
+    }
+    best.1
 }
 
 #[cfg(test)]
