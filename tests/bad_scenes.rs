@@ -303,3 +303,45 @@ fn bad_subdivision_settings_are_errors_with_their_place() {
     let scene = common::scene(&format!("{BODY}subdivision = {{}}\n"));
     assert!(scene.bodies[0].params.subdivision.is_some());
 }
+
+#[test]
+fn mesh_sizes_out_of_range_are_errors_with_their_place() {
+    let cases = [
+        (
+            "[[body]]\nmesh = { icosphere = { radius = 0.05 }, scale = 0.0 }\n",
+            "bad.toml:2:49: `scale` must be a number > 0 or three numbers > 0, found [0.0, 0.0, 0.0]",
+        ),
+        (
+            "[[body]]\nmesh = { icosphere = { radius = 0.05 }, scale = [1.0, -2.0, 1.0] }\n",
+            "bad.toml:2:49: `scale` must be a number > 0 or three numbers > 0, found [1.0, -2.0, 1.0]",
+        ),
+        (
+            "[[body]]\nmesh = { box = { size = [0.1, 0.1, 0.1], subdivisions = [1, 101, 1] } }\n",
+            "bad.toml:2:57: `subdivisions` must be at most 100 (per axis), found [1, 101, 1]",
+        ),
+        (
+            "[[body]]\nmesh = { capsule = { radius = 0.01, length = 0.05, around = 5 } }\n",
+            "bad.toml:2:61: `around` must be 6 to 256, found 5",
+        ),
+        (
+            "[[body]]\nmesh = { capsule = { radius = 0.01, length = 1000.0, around = 256 } }\n",
+            "bad.toml:2:20: the capsule would have about 1043071232 vertices, more than a scene may have",
+        ),
+    ];
+    for (text, expected) in cases {
+        assert_eq!(error_of(text), expected, "{text}");
+    }
+    // Seven spheres of 163 842 vertices pass the scene's 2^20: the seventh is refused where its
+    // mesh is, before it is built.
+    let mut text = String::new();
+    for k in 0..7 {
+        text += &format!(
+            "[[body]]\nname = \"b{k}\"\nmesh = {{ icosphere = {{ radius = 0.05, subdivisions = 7 }} }}\n"
+        );
+    }
+    assert_eq!(
+        error_of(&text),
+        "bad.toml:21:8: the scene's meshes would have 1146894 vertices with this one (163842), \
+         more than the 1048576 a scene may have"
+    );
+}

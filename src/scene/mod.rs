@@ -934,39 +934,7 @@ impl Ctx<'_> {
                     .to_string(),
             ));
         }
-        let scale = match &m.scale {
-            None => Vec3::repeat(1.0),
-            Some(s) => {
-                let v = match s.get_ref() {
-                    ScaleValue::Uniform(x) => Vec3::repeat(*x),
-                    ScaleValue::PerAxis(a) => Vec3::from(*a),
-                };
-                if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
-                    return Err(self.error(
-                        s.span(),
-                        format!(
-                            "`scale` must be a number > 0 or three numbers > 0, found {:?}",
-                            v.as_slice()
-                        ),
-                    ));
-                }
-                v
-            }
-        };
-        let check_subdivisions =
-            |s: &Option<Spanned<u32>>, default: u32, max: u32| -> Result<u32, SceneError> {
-                match s {
-                    None => Ok(default),
-                    Some(v) if *v.get_ref() <= max => Ok(*v.get_ref()),
-                    Some(v) => Err(self.error(
-                        v.span(),
-                        format!(
-                            "`subdivisions` must be at most {max}, found {}",
-                            v.get_ref()
-                        ),
-                    )),
-                }
-            };
+        let scale = self.mesh_scale(m.scale.as_ref())?;
         // Primitives are counted before they are built, OBJ meshes (bounded by their file) after.
         let mut budget = |added: usize| -> Result<(), SceneError> {
             *vertices = vertices.saturating_add(added);
@@ -985,7 +953,7 @@ impl Ctx<'_> {
         let icosphere_vertices = |s: u32| 10 * 4usize.pow(s) + 2;
         let (mut mesh, source) = if let Some(ico) = &m.icosphere {
             let radius = self.number(Some(&ico.get_ref().radius), 0.0, "radius", Rule::Positive)?;
-            let subdivisions = check_subdivisions(&ico.get_ref().subdivisions, 2, 7)?;
+            let subdivisions = self.subdivisions(&ico.get_ref().subdivisions, 2, 7)?;
             budget(icosphere_vertices(subdivisions))?;
             (
                 mesh::icosphere(radius, subdivisions),
@@ -993,7 +961,7 @@ impl Ctx<'_> {
             )
         } else if let Some(ell) = &m.ellipsoid {
             let radii = self.positive_vector(&ell.get_ref().radii, "radii")?;
-            let subdivisions = check_subdivisions(&ell.get_ref().subdivisions, 2, 7)?;
+            let subdivisions = self.subdivisions(&ell.get_ref().subdivisions, 2, 7)?;
             budget(icosphere_vertices(subdivisions))?;
             let mut mesh = mesh::icosphere(1.0, subdivisions);
             mesh.scale(radii);
@@ -1002,62 +970,9 @@ impl Ctx<'_> {
                 format!("ellipsoid radii={:?} s={subdivisions}", radii.as_slice()),
             )
         } else if let Some(bx) = &m.box_ {
-            let size = self.positive_vector(&bx.get_ref().size, "size")?;
-            let subdivisions = match &bx.get_ref().subdivisions {
-                None => [0; 3],
-                Some(v) => {
-                    let n = match v.get_ref() {
-                        BoxSubdivisions::Uniform(n) => [*n; 3],
-                        BoxSubdivisions::PerAxis(a) => *a,
-                    };
-                    if n.iter().any(|&k| k > 100) {
-                        return Err(self.error(
-                            v.span(),
-                            format!("`subdivisions` must be at most 100 (per axis), found {n:?}"),
-                        ));
-                    }
-                    n
-                }
-            };
-            // Grid points on the surface: all of them less the interior ones.
-            let [a, b, c] = subdivisions.map(|k| k as usize);
-            budget((a + 2) * (b + 2) * (c + 2) - a * b * c)?;
-            (
-                mesh::box_mesh_per_axis(size, subdivisions),
-                format!("box size={:?} s={subdivisions:?}", size.as_slice()),
-            )
+            self.box_mesh(bx.get_ref(), &mut budget)?
         } else if let Some(cap) = &m.capsule {
-            let c = cap.get_ref();
-            let radius = self.number(Some(&c.radius), 0.0, "radius", Rule::Positive)?;
-            let length = self.number(Some(&c.length), 0.0, "length", Rule::Positive)?;
-            let around = match &c.around {
-                None => 24,
-                Some(v) if (6..=256).contains(v.get_ref()) => *v.get_ref(),
-                Some(v) => {
-                    return Err(self.error(
-                        v.span(),
-                        format!("`around` must be 6 to 256, found {}", v.get_ref()),
-                    ));
-                }
-            };
-            // Rings about one node spacing apart: bound the count before building.
-            let spacing = std::f64::consts::TAU * radius / around as f64;
-            let rings =
-                (length / spacing).ceil() + (std::f64::consts::PI * radius / spacing).ceil() + 2.0;
-            if rings.is_nan() || rings * around as f64 > MAX_SCENE_VERTICES as f64 {
-                return Err(self.error(
-                    cap.span(),
-                    format!(
-                        "the capsule would have about {} vertices, more than a scene may have",
-                        rings * around as f64
-                    ),
-                ));
-            }
-            budget((rings as usize) * around as usize)?;
-            (
-                mesh::capsule(radius, length, around),
-                format!("capsule r={radius} l={length} around={around}"),
-            )
+            self.capsule_mesh(cap, &mut budget)?
         } else {
             let obj = m.obj.as_ref().expect("one mesh kind was given");
             let path = dir.join(obj.get_ref());
@@ -1073,6 +988,118 @@ impl Ctx<'_> {
         mesh.recentre_on_surface_centre();
         mesh.reorder_for_locality();
         Ok((mesh, source))
+    }
+
+    /// A mesh's `scale`: one number or three, each finite and > 0 (1 when absent).
+    fn mesh_scale(&self, scale: Option<&Spanned<ScaleValue>>) -> Result<Vec3, SceneError> {
+        let Some(s) = scale else {
+            return Ok(Vec3::repeat(1.0));
+        };
+        let v = match s.get_ref() {
+            ScaleValue::Uniform(x) => Vec3::repeat(*x),
+            ScaleValue::PerAxis(a) => Vec3::from(*a),
+        };
+        if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err(self.error(
+                s.span(),
+                format!(
+                    "`scale` must be a number > 0 or three numbers > 0, found {:?}",
+                    v.as_slice()
+                ),
+            ));
+        }
+        Ok(v)
+    }
+
+    /// A sphere's or ellipsoid's `subdivisions`: at most `max` (`default` when absent).
+    fn subdivisions(
+        &self,
+        s: &Option<Spanned<u32>>,
+        default: u32,
+        max: u32,
+    ) -> Result<u32, SceneError> {
+        match s {
+            None => Ok(default),
+            Some(v) if *v.get_ref() <= max => Ok(*v.get_ref()),
+            Some(v) => Err(self.error(
+                v.span(),
+                format!(
+                    "`subdivisions` must be at most {max}, found {}",
+                    v.get_ref()
+                ),
+            )),
+        }
+    }
+
+    /// `box = { size, subdivisions }`: its surface grid counted against `budget`, then built.
+    fn box_mesh(
+        &self,
+        bx: &BoxMeshSection,
+        budget: &mut dyn FnMut(usize) -> Result<(), SceneError>,
+    ) -> Result<(SurfaceMesh, String), SceneError> {
+        let size = self.positive_vector(&bx.size, "size")?;
+        let subdivisions = match &bx.subdivisions {
+            None => [0; 3],
+            Some(v) => {
+                let n = match v.get_ref() {
+                    BoxSubdivisions::Uniform(n) => [*n; 3],
+                    BoxSubdivisions::PerAxis(a) => *a,
+                };
+                if n.iter().any(|&k| k > 100) {
+                    return Err(self.error(
+                        v.span(),
+                        format!("`subdivisions` must be at most 100 (per axis), found {n:?}"),
+                    ));
+                }
+                n
+            }
+        };
+        // Grid points on the surface: all of them less the interior ones.
+        let [a, b, c] = subdivisions.map(|k| k as usize);
+        budget((a + 2) * (b + 2) * (c + 2) - a * b * c)?;
+        Ok((
+            mesh::box_mesh_per_axis(size, subdivisions),
+            format!("box size={:?} s={subdivisions:?}", size.as_slice()),
+        ))
+    }
+
+    /// `capsule = { radius, length, around }`: its rings (about one node spacing apart) bounded
+    /// and counted against `budget` before it is built.
+    fn capsule_mesh(
+        &self,
+        cap: &Spanned<CapsuleMeshSection>,
+        budget: &mut dyn FnMut(usize) -> Result<(), SceneError>,
+    ) -> Result<(SurfaceMesh, String), SceneError> {
+        let c = cap.get_ref();
+        let radius = self.number(Some(&c.radius), 0.0, "radius", Rule::Positive)?;
+        let length = self.number(Some(&c.length), 0.0, "length", Rule::Positive)?;
+        let around = match &c.around {
+            None => 24,
+            Some(v) if (6..=256).contains(v.get_ref()) => *v.get_ref(),
+            Some(v) => {
+                return Err(self.error(
+                    v.span(),
+                    format!("`around` must be 6 to 256, found {}", v.get_ref()),
+                ));
+            }
+        };
+        let spacing = std::f64::consts::TAU * radius / around as f64;
+        let rings =
+            (length / spacing).ceil() + (std::f64::consts::PI * radius / spacing).ceil() + 2.0;
+        if rings.is_nan() || rings * around as f64 > MAX_SCENE_VERTICES as f64 {
+            return Err(self.error(
+                cap.span(),
+                format!(
+                    "the capsule would have about {} vertices, more than a scene may have",
+                    rings * around as f64
+                ),
+            ));
+        }
+        budget((rings as usize) * around as usize)?;
+        Ok((
+            mesh::capsule(radius, length, around),
+            format!("capsule r={radius} l={length} around={around}"),
+        ))
     }
 
     /// An `[[attachment]]` table, its ties resolved on the bodies as placed.
