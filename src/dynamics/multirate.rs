@@ -882,45 +882,9 @@ impl Multirate {
         if self.rigid_substepped {
             return self.integrate_with_rigid(body, dt, gravity, (obstacles, reach), reactions);
         }
-        let s = &mut body.surface;
-        // A spring between a sub-stepped node and one that is not gives the first, over its
-        // substeps, forces from the second's interpolated trajectory, and the second the force of
-        // the start-of-step state for the whole step: not equal and opposite impulses once the
-        // spring changes over the step (a lone deforming body lost momentum so). The second is
-        // owed the difference, given it after the substeps. Here, what it takes at the start (the
-        // force stage's, to rounding), from the states before the step.
-        let e = &body.edges;
         if !slow_nodes_integrated {
-            for (k, &i) in self.fast.iter().enumerate() {
-                let i = i as usize;
-                if s.tool_contact[i].tool != NO_TOOL {
-                    continue;
-                }
-                let (x, v) = (s.position_in_world[i], s.velocity_in_world[i]);
-                for at in self.start[k] as usize..self.start[k + 1] as usize {
-                    let j = self.neighbour[at] as usize;
-                    if self.local[j] != u32::MAX {
-                        continue;
-                    }
-                    let (xj, vj) = (s.position_in_world[j], s.velocity_in_world[j]);
-                    if let Some(pull) = spring_pull(e, self.edge[at] as usize, &x, &v, &xj, &vj) {
-                        self.owed[j] += pull * dt;
-                    }
-                }
-            }
-        }
-        let n = if slow_nodes_integrated {
-            0
-        } else {
-            s.mass.len()
-        };
-        for i in 0..n {
-            if self.local[i] != u32::MAX || s.tool_contact[i].tool != NO_TOOL {
-                continue;
-            }
-            let velocity = s.velocity_in_world[i] + s.force_in_world[i] * (dt * s.inverse_mass[i]);
-            s.velocity_in_world[i] = velocity;
-            s.next_position_in_world[i] = s.position_in_world[i] + velocity * dt;
+            self.owe_start_of_step_pulls(body, dt);
+            self.integrate_slow_nodes(&mut body.surface, dt);
         }
         if self.rigid_implicit {
             // Every node is slow here (see `rebuild`): nothing is left to sub-step.
@@ -930,12 +894,84 @@ impl Multirate {
         if self.fast.is_empty() {
             return 0;
         }
-        // What the fast nodes' links gave the nodes last step beyond the start-of-step force the
-        // rigid component took: its reaction, now.
+        let (centre, end_centre) = self.start_substeps(body, dt);
+        // Each fast node steps at its own level: node i every `stride = 2^(L − level[i])` substeps,
+        // with a step of `stride · h` (one stiff node does not drag every fast node down to its
+        // step). Its fast neighbours enter with their latest states.
+        for step in 0..self.substeps {
+            self.substep_forces(
+                body,
+                (step, dt),
+                gravity,
+                (centre, end_centre),
+                slow_nodes_integrated,
+            );
+            self.substep_move(&body.surface, step, dt);
+        }
+        let s = &mut body.surface;
+        for (k, &i) in self.fast.iter().enumerate() {
+            let i = i as usize;
+            if s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            s.velocity_in_world[i] = self.v[k];
+            s.next_position_in_world[i] = self.x[k];
+        }
+        if !slow_nodes_integrated {
+            self.pay_owed(s, dt);
+        }
+        0
+    }
+
+    /// A spring between a sub-stepped node and one that is not gives the first, over its
+    /// substeps, forces from the second's interpolated trajectory, and the second the force of
+    /// the start-of-step state for the whole step: not equal and opposite impulses once the
+    /// spring changes over the step (a lone deforming body lost momentum so). The second is
+    /// owed the difference, given it after the substeps. Here, what it takes at the start (the
+    /// force stage's, to rounding), from the states before the step.
+    fn owe_start_of_step_pulls(&mut self, body: &Body, dt: f64) {
+        let (s, e) = (&body.surface, &body.edges);
+        for (k, &i) in self.fast.iter().enumerate() {
+            let i = i as usize;
+            if s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            let (x, v) = (s.position_in_world[i], s.velocity_in_world[i]);
+            for at in self.start[k] as usize..self.start[k + 1] as usize {
+                let j = self.neighbour[at] as usize;
+                if self.local[j] != u32::MAX {
+                    continue;
+                }
+                let (xj, vj) = (s.position_in_world[j], s.velocity_in_world[j]);
+                if let Some(pull) = spring_pull(e, self.edge[at] as usize, &x, &v, &xj, &vj) {
+                    self.owed[j] += pull * dt;
+                }
+            }
+        }
+    }
+
+    /// The free nodes that are not sub-stepped, in one step of `dt` on the step's forces.
+    fn integrate_slow_nodes(&self, s: &mut crate::body::Surface, dt: f64) {
+        for i in 0..s.mass.len() {
+            if self.local[i] != u32::MAX || s.tool_contact[i].tool != NO_TOOL {
+                continue;
+            }
+            let velocity = s.velocity_in_world[i] + s.force_in_world[i] * (dt * s.inverse_mass[i]);
+            s.velocity_in_world[i] = velocity;
+            s.next_position_in_world[i] = s.position_in_world[i] + velocity * dt;
+        }
+    }
+
+    /// Before the substeps: the rigid component takes what the fast nodes' links gave the nodes
+    /// last step beyond its start-of-step force; the fast nodes' states are copied in, with their
+    /// homologues at the end of the step (where the rigid component will be: its forces are
+    /// known, so the homologues move with it through the substeps instead of waiting a step); and
+    /// the start-of-step link forces the rigid component took are carried, to be corrected by what
+    /// the substeps apply. The rigid component's centre at the start and at the end of the step.
+    fn start_substeps(&mut self, body: &mut Body, dt: f64) -> (Vec3, Vec3) {
         body.rigid.force_in_world += std::mem::take(&mut self.carried_force);
         body.rigid.torque_in_world += std::mem::take(&mut self.carried_torque);
-        // Where the rigid component will be at the end of the step (its forces are already known), so
-        // the fast nodes' homologues move with it through the substeps instead of waiting a step.
+        let s = &body.surface;
         let mut rigid_end = body.rigid.clone();
         rigid_end.integrate(dt);
         let end_rotation = rigid_end.world_from_body.to_rotation_matrix();
@@ -950,8 +986,6 @@ impl Multirate {
             self.homologue_end[k] =
                 rigid_end.position_in_world + end_rotation * s.homologue_in_body[i];
             if s.tool_contact[i].tool == NO_TOOL {
-                // The start-of-step link force the rigid component took (as the force stage has
-                // it), to be corrected by what the substeps apply.
                 let arm = start_rotation * s.homologue_in_body[i];
                 let link = (centre + arm - s.position_in_world[i]) * s.link_stiffness[i]
                     + (velocity_of_centre + omega.cross(&arm) - s.velocity_in_world[i])
@@ -960,88 +994,95 @@ impl Multirate {
                 self.carried_torque += arm.cross(&link);
             }
         }
+        (centre, rigid_end.position_in_world)
+    }
+
+    /// Substep `step`'s force on each fast node due then (gravity, outside forces, air, its link
+    /// to the homologue moving with the rigid component, its springs to its neighbours at their
+    /// latest states or, for nodes not sub-stepped, on their interpolated trajectories), the
+    /// rigid component's reaction carried, and what the nodes not sub-stepped are owed.
+    fn substep_forces(
+        &mut self,
+        body: &Body,
+        (step, dt): (u32, f64),
+        gravity: &Vec3,
+        (centre, end_centre): (Vec3, Vec3),
+        slow_nodes_integrated: bool,
+    ) {
+        let (s, e) = (&body.surface, &body.edges);
         let h = dt / self.substeps as f64;
-        // Each fast node steps at its own level: node i every `stride = 2^(L − level[i])` substeps,
-        // with a step of `stride · h` (one stiff node does not drag every fast node down to its
-        // step). Its fast neighbours enter with their latest states.
-        for step in 0..self.substeps {
-            let fraction = step as f64 / self.substeps as f64;
-            for (k, &i) in self.fast.iter().enumerate() {
-                let i = i as usize;
-                let stride = self.substeps >> self.level[i];
-                if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
-                    continue;
-                }
-                let (x, v) = (self.x[k], self.v[k]);
-                let (start, end) = (s.homologue_in_world[i], self.homologue_end[k]);
-                let homologue = start + (end - start) * fraction;
-                let homologue_velocity = (end - start) / dt;
-                let link = (homologue - x) * s.link_stiffness[i]
-                    + (homologue_velocity - v) * s.link_damping[i];
-                // The rigid component's reaction over this substep (a force over the step).
-                let share = stride as f64 / self.substeps as f64;
-                let centre_now = centre + (rigid_end.position_in_world - centre) * fraction;
-                self.carried_force -= link * share;
-                self.carried_torque -= (homologue - centre_now).cross(&link) * share;
-                let mut force =
-                    gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
-                for at in self.start[k] as usize..self.start[k + 1] as usize {
-                    let j = self.neighbour[at] as usize;
-                    let edge = self.edge[at] as usize;
-                    let (xj, vj) = match self.local[j] {
-                        u32::MAX => {
-                            let (a, b) = (s.position_in_world[j], s.next_position_in_world[j]);
-                            (a + (b - a) * fraction, (b - a) / dt)
-                        }
-                        l => (self.x[l as usize], self.v[l as usize]),
-                    };
-                    if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
-                        force += pull;
-                        if self.local[j] == u32::MAX && !slow_nodes_integrated {
-                            self.owed[j] -= pull * (h * stride as f64);
-                        }
-                    }
-                }
-                self.f[k] = force;
-            }
-            for (k, &i) in self.fast.iter().enumerate() {
-                let i = i as usize;
-                let stride = self.substeps >> self.level[i];
-                if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
-                    continue;
-                }
-                let own = h * stride as f64;
-                self.v[k] += self.f[k] * (own * s.inverse_mass[i]);
-                self.x[k] += self.v[k] * own;
-            }
-        }
+        let fraction = step as f64 / self.substeps as f64;
         for (k, &i) in self.fast.iter().enumerate() {
             let i = i as usize;
-            if s.tool_contact[i].tool != NO_TOOL {
+            let stride = self.substeps >> self.level[i];
+            if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
                 continue;
             }
-            s.velocity_in_world[i] = self.v[k];
-            s.next_position_in_world[i] = self.x[k];
-        }
-        // What the nodes not sub-stepped are owed (each once: its debt is cleared as it is paid),
-        // as a change of their end velocity over the step.
-        if !slow_nodes_integrated {
-            for k in 0..self.fast.len() {
-                for at in self.start[k] as usize..self.start[k + 1] as usize {
-                    let j = self.neighbour[at] as usize;
-                    if self.local[j] != u32::MAX {
-                        continue;
+            let (x, v) = (self.x[k], self.v[k]);
+            let (start, end) = (s.homologue_in_world[i], self.homologue_end[k]);
+            let homologue = start + (end - start) * fraction;
+            let homologue_velocity = (end - start) / dt;
+            let link = (homologue - x) * s.link_stiffness[i]
+                + (homologue_velocity - v) * s.link_damping[i];
+            // The rigid component's reaction over this substep (a force over the step).
+            let share = stride as f64 / self.substeps as f64;
+            let centre_now = centre + (end_centre - centre) * fraction;
+            self.carried_force -= link * share;
+            self.carried_torque -= (homologue - centre_now).cross(&link) * share;
+            let mut force = gravity * s.mass[i] + self.external[i] - v * s.air_damping[i] + link;
+            for at in self.start[k] as usize..self.start[k + 1] as usize {
+                let j = self.neighbour[at] as usize;
+                let edge = self.edge[at] as usize;
+                let (xj, vj) = match self.local[j] {
+                    u32::MAX => {
+                        let (a, b) = (s.position_in_world[j], s.next_position_in_world[j]);
+                        (a + (b - a) * fraction, (b - a) / dt)
                     }
-                    let held = s.tool_contact[j].tool != NO_TOOL;
-                    let end = (
-                        &mut s.velocity_in_world[j],
-                        &mut s.next_position_in_world[j],
-                    );
-                    pay_owed(&mut self.owed[j], held, s.inverse_mass[j], end, dt);
+                    l => (self.x[l as usize], self.v[l as usize]),
+                };
+                if let Some(pull) = spring_pull(e, edge, &x, &v, &xj, &vj) {
+                    force += pull;
+                    if self.local[j] == u32::MAX && !slow_nodes_integrated {
+                        self.owed[j] -= pull * (h * stride as f64);
+                    }
                 }
             }
+            self.f[k] = force;
         }
-        0
+    }
+
+    /// Substep `step`'s motion of the fast nodes due then, on the forces just taken.
+    fn substep_move(&mut self, s: &crate::body::Surface, step: u32, dt: f64) {
+        let h = dt / self.substeps as f64;
+        for (k, &i) in self.fast.iter().enumerate() {
+            let i = i as usize;
+            let stride = self.substeps >> self.level[i];
+            if s.tool_contact[i].tool != NO_TOOL || step % stride != 0 {
+                continue;
+            }
+            let own = h * stride as f64;
+            self.v[k] += self.f[k] * (own * s.inverse_mass[i]);
+            self.x[k] += self.v[k] * own;
+        }
+    }
+
+    /// What the nodes not sub-stepped are owed (each once: its debt is cleared as it is paid), as
+    /// a change of their end velocity over the step.
+    fn pay_owed(&mut self, s: &mut crate::body::Surface, dt: f64) {
+        for k in 0..self.fast.len() {
+            for at in self.start[k] as usize..self.start[k + 1] as usize {
+                let j = self.neighbour[at] as usize;
+                if self.local[j] != u32::MAX {
+                    continue;
+                }
+                let held = s.tool_contact[j].tool != NO_TOOL;
+                let end = (
+                    &mut s.velocity_in_world[j],
+                    &mut s.next_position_in_world[j],
+                );
+                pay_owed(&mut self.owed[j], held, s.inverse_mass[j], end, dt);
+            }
+        }
     }
 
     /// Every node and the rigid component together in substeps (the rigid component's coupling
