@@ -767,10 +767,7 @@ impl DaemonProcess {
         let Some(child) = self.0.take() else {
             return Ok(None);
         };
-        // SAFETY: kill(2) on our own child.
-        unsafe {
-            libc::kill(child.id() as i32, libc::SIGTERM);
-        }
+        terminate(&child);
         let output = child.wait_with_output().context("waiting for the daemon")?;
         Ok(String::from_utf8_lossy(&output.stdout)
             .lines()
@@ -783,12 +780,19 @@ impl DaemonProcess {
 impl Drop for DaemonProcess {
     fn drop(&mut self) {
         if let Some(mut child) = self.0.take() {
-            // SAFETY: kill(2) on our own child.
-            unsafe {
-                libc::kill(child.id() as i32, libc::SIGTERM);
-            }
+            terminate(&child);
             let _ = child.wait();
         }
+    }
+}
+
+/// Asks a child process to stop (SIGTERM: the daemon finishes its recording and prints its
+/// summary).
+#[cfg(feature = "ipc")]
+fn terminate(child: &std::process::Child) {
+    // SAFETY: kill(2) on our own child.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
     }
 }
 

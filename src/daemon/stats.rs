@@ -7,6 +7,21 @@ use crate::ipc::payload::StatsV1;
 /// Histogram bins (1 µs each); longer ticks land in the last bin.
 const BINS: usize = 5000;
 
+/// The `q` quantile (0 < q ≤ 1) of `count` times binned 1 µs a bin in `histogram`: the upper edge
+/// of the bin it falls in (a conservative quantile at 1 µs resolution), at most `max_us`, the
+/// longest time; 0 when nothing was binned.
+pub fn histogram_quantile_us(histogram: &[u32], count: u64, q: f64, max_us: f64) -> f64 {
+    let rank = ((q * count as f64).ceil() as u64).max(1);
+    let mut seen = 0u64;
+    for (bin, &c) in histogram.iter().enumerate() {
+        seen += c as u64;
+        if seen >= rank && c > 0 {
+            return ((bin + 1) as f64).min(max_us.max(bin as f64));
+        }
+    }
+    0.0
+}
+
 /// Accumulates one window.
 #[derive(Clone, Debug)]
 pub struct LoopStats {
@@ -78,17 +93,7 @@ impl LoopStats {
         out.compute_min_us = if self.count > 0 { self.min_us } else { 0.0 };
         out.compute_mean_us = self.sum_us / n;
         out.compute_max_us = self.max_us;
-        let rank = (0.99 * self.count as f64).ceil() as u64;
-        let mut seen = 0u64;
-        out.compute_p99_us = 0.0;
-        for (bin, &c) in self.histogram.iter().enumerate() {
-            seen += c as u64;
-            if seen >= rank && c > 0 {
-                // The bin's upper edge: a conservative percentile at 1 µs resolution.
-                out.compute_p99_us = ((bin + 1) as f64).min(self.max_us.max(bin as f64));
-                break;
-            }
-        }
+        out.compute_p99_us = histogram_quantile_us(&self.histogram, self.count, 0.99, self.max_us);
         out.lateness_mean_us = self.lateness_sum_us / n;
         out.lateness_max_us = self.lateness_max_us;
         out.synchronicity_misses = self.synchronicity_misses;

@@ -406,15 +406,7 @@ impl StepTimes {
     /// The `q` quantile (0 < q ≤ 1) of the replayed step times at 1 µs resolution: the upper edge
     /// of the bin it falls in, at most the longest step (µs); 0 when none was timed.
     pub fn quantile_us(&self, q: f64) -> f64 {
-        let rank = ((q * self.ticks as f64).ceil() as u64).max(1);
-        let mut seen = 0u64;
-        for (bin, &count) in self.histogram.iter().enumerate() {
-            seen += count as u64;
-            if seen >= rank && count > 0 {
-                return ((bin + 1) as f64).min(self.max_us);
-            }
-        }
-        0.0
+        crate::daemon::stats::histogram_quantile_us(&self.histogram, self.ticks, q, self.max_us)
     }
 }
 
