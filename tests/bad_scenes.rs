@@ -196,6 +196,91 @@ fn a_closed_obj_cube_loads() {
     std::fs::remove_dir_all(dir).unwrap();
 }
 
+/// The plain cube's enclosed volume and vertex count, read through a scene.
+fn cube_as_read(name: &str, obj: &str) -> (usize, usize, f64) {
+    let dir = obj_dir(name, obj);
+    let scene = parse_scene(OBJ_BODY, "ok.toml", &dir).unwrap_or_else(|e| panic!("{name}: {e}"));
+    std::fs::remove_dir_all(dir).unwrap();
+    let mesh = &scene.bodies[0].mesh;
+    (
+        mesh.vertex_count(),
+        mesh.triangles.len(),
+        mesh.signed_volume(),
+    )
+}
+
+#[test]
+fn an_obj_written_in_groups_or_as_separate_triangles_is_the_surface_it_describes() {
+    let plain = cube_as_read(
+        "plain",
+        &format!("{CUBE_VERTICES}{}\n", CUBE_FACES.join("\n")),
+    );
+    assert_eq!((plain.0, plain.1), (8, 12));
+    assert!((plain.2 - 1e-3).abs() < 1e-15, "{plain:?}");
+    // As an exporter writes it: an object, two groups with their own materials sharing the
+    // cube's vertices, smoothing groups, quads with texture coordinates and normals, negative
+    // indices, a line, CRLF line ends and tabs.
+    let exported = "mtllib cube.mtl\r\no Cube\r\nv 0 0 0\r\nv 1 0 0\r\nv 1 1 0\r\nv 0 1 0\r\n\
+                    v 0 0 1\r\nv 1 0 1\r\nv 1 1 1\r\nv 0 1 1\r\nvt 0 0\r\nvn 0 0 1\r\n\
+                    g top\r\nusemtl red\r\ns 1\r\nf\t5/1/1 6/1/1 7/1/1 8/1/1\r\nf -8//1 -5//1 -6//1 -7//1\r\n\
+                    g sides\r\nusemtl blue\r\ns off\r\nf 1 2 6 5\r\nf 2 3 7 6\r\nf 3 4 8 7\r\n\
+                    f 4/1 1/1 5/1 8/1\r\nl 1 7\r\n";
+    assert_eq!(cube_as_read("exported", exported), plain);
+    // A triangle soup (as converted from STL): every triangle with vertices of its own.
+    let corners: Vec<[f64; 3]> = CUBE_VERTICES
+        .lines()
+        .map(|l| {
+            let w: Vec<f64> = l
+                .split_whitespace()
+                .skip(1)
+                .map(|w| w.parse().unwrap())
+                .collect();
+            [w[0], w[1], w[2]]
+        })
+        .collect();
+    let mut soup = String::new();
+    for face in CUBE_FACES {
+        for index in face.split_whitespace().skip(1) {
+            let [x, y, z] = corners[index.parse::<usize>().unwrap() - 1];
+            soup += &format!("v {x} {y} {z}\n");
+        }
+    }
+    for t in 0..12 {
+        soup += &format!("f {} {} {}\n", 3 * t + 1, 3 * t + 2, 3 * t + 3);
+    }
+    assert_eq!(cube_as_read("soup", &soup), plain);
+}
+
+#[test]
+fn an_obj_error_names_the_vertices_as_numbered_in_the_file() {
+    // Two vertices no face uses, first in the file, before the cube with a hole: the edge is
+    // still that of the file's vertices 5 and 9 (the cube's 3 and 7).
+    let dir = obj_dir(
+        "hole-after-unused",
+        &format!(
+            "v 9 9 9\nv 8 8 8\n{CUBE_VERTICES}{}\n",
+            CUBE_FACES[..11]
+                .iter()
+                .map(|f| {
+                    let i: Vec<usize> = f
+                        .split_whitespace()
+                        .skip(1)
+                        .map(|w| w.parse().unwrap())
+                        .collect();
+                    format!("f {} {} {}", i[0] + 2, i[1] + 2, i[2] + 2)
+                })
+                .collect::<Vec<_>>()
+                .join("\n")
+        ),
+    );
+    let e = error_in(OBJ_BODY, &dir);
+    assert_eq!(
+        e,
+        "bad.toml:2:8: mesh (obj m.obj): the mesh is not a closed manifold: the edge between vertices 5 and 9 (0-based) is used by 1 triangle(s), expected 2"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
 #[test]
 fn obj_with_a_hole_is_not_a_closed_manifold() {
     let dir = obj_dir(

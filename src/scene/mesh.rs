@@ -118,6 +118,47 @@ pub enum MeshError {
     },
 }
 
+impl MeshError {
+    /// The same error with its vertex numbers mapped through `before` (a vertex's number before a
+    /// renumbering, by its number after).
+    fn renumbered(self, before: &[u32]) -> MeshError {
+        let was = |v: u32| before.get(v as usize).copied().unwrap_or(v);
+        match self {
+            MeshError::Degenerate {
+                triangle,
+                a,
+                b,
+                c,
+                area,
+                longest,
+            } => MeshError::Degenerate {
+                triangle,
+                a: was(a),
+                b: was(b),
+                c: was(c),
+                area,
+                longest,
+            },
+            MeshError::NotClosed { a, b, count } => {
+                let (a, b) = (was(a), was(b));
+                MeshError::NotClosed {
+                    a: a.min(b),
+                    b: a.max(b),
+                    count,
+                }
+            }
+            MeshError::Inconsistent { a, b } => MeshError::Inconsistent {
+                a: was(a),
+                b: was(b),
+            },
+            MeshError::NonManifoldVertex { vertex } => MeshError::NonManifoldVertex {
+                vertex: was(vertex),
+            },
+            other => other,
+        }
+    }
+}
+
 impl SurfaceMesh {
     /// Checks that the mesh is a closed, consistently oriented 2-manifold without degenerate triangles,
     /// drops unreferenced vertices, and flips the winding if the mesh was wound inside out.
@@ -142,9 +183,15 @@ impl SurfaceMesh {
                 }
             }
         }
-        self.drop_unreferenced_vertices();
-        self.check_degenerate()?;
-        self.check_manifold()?;
+        // The checks name vertices by their number in the mesh as given (an OBJ file's, 0-based),
+        // not after the unreferenced ones are dropped.
+        let kept = self.drop_unreferenced_vertices();
+        let as_given = |e: MeshError| match &kept {
+            Some(kept) => e.renumbered(kept),
+            None => e,
+        };
+        self.check_degenerate().map_err(as_given)?;
+        self.check_manifold().map_err(as_given)?;
         let volume = self.signed_volume();
         let extent = self.bounding_diagonal();
         if !volume.is_finite() || !extent.is_finite() || !self.area().is_finite() {
@@ -171,7 +218,9 @@ impl SurfaceMesh {
         (hi - lo).norm()
     }
 
-    fn drop_unreferenced_vertices(&mut self) {
+    /// Drops the vertices no triangle uses; when there were any, returns each kept vertex's number
+    /// before.
+    fn drop_unreferenced_vertices(&mut self) -> Option<Vec<u32>> {
         let n = self.positions_in_body.len();
         let mut used = vec![false; n];
         for tri in &self.triangles {
@@ -180,20 +229,23 @@ impl SurfaceMesh {
             }
         }
         if used.iter().all(|&u| u) {
-            return;
+            return None;
         }
         let mut remap = vec![u32::MAX; n];
         let mut kept = Vec::with_capacity(n);
+        let mut before = Vec::with_capacity(n);
         for (v, &u) in used.iter().enumerate() {
             if u {
                 remap[v] = kept.len() as u32;
                 kept.push(self.positions_in_body[v]);
+                before.push(v as u32);
             }
         }
         self.positions_in_body = kept;
         for tri in &mut self.triangles {
             *tri = tri.map(|v| remap[v as usize]);
         }
+        Some(before)
     }
 
     fn check_degenerate(&self) -> Result<(), MeshError> {
@@ -587,8 +639,8 @@ pub fn box_mesh_per_axis(size: Vec3, subdivisions: [u32; 3]) -> SurfaceMesh {
     }
 }
 
-/// Reads the triangles of every object in an OBJ file (faces with more corners are fanned into
-/// triangles; normals, texture coordinates and materials are ignored).
+/// Reads the surface an OBJ file describes, all its objects and groups as one mesh (see
+/// [`parse_obj`]).
 pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
     let obj_error = |reason: String| MeshError::Obj {
         path: path.display().to_string(),
@@ -605,8 +657,9 @@ pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
 
 /// Reads OBJ text from bytes; `name` is used in messages. The text is checked line by line first
 /// (UTF-8, numbers where numbers belong, every face index within the vertices, texture coordinates
-/// and normals the file defines), so that an error names its line and column and the OBJ reader
-/// only ever sees indices it can resolve.
+/// and normals the file defines), so that an error names its line and column and the reading
+/// ([`read_checked_obj`]) only ever sees indices it can resolve; then vertices at the same
+/// position are merged ([`weld_coincident_vertices`]).
 pub fn parse_obj(bytes: &[u8], name: &str) -> Result<SurfaceMesh, MeshError> {
     let syntax = |line: usize, column: usize, message: String| MeshError::ObjSyntax {
         path: name.to_string(),
@@ -626,44 +679,83 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<SurfaceMesh, MeshError> {
         syntax(line, column, "not UTF-8 text".into())
     })?;
     check_obj_text(text).map_err(|(line, column, message)| syntax(line, column, message))?;
-    let obj_error = |reason: String| MeshError::Obj {
-        path: name.to_string(),
-        reason,
-    };
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ..Default::default()
-    };
-    let (models, _materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })
-    .map_err(|e| obj_error(e.to_string()))?;
+    let mesh = read_checked_obj(text);
+    if mesh.triangles.is_empty() {
+        return Err(MeshError::Obj {
+            path: name.to_string(),
+            reason: "no faces found".into(),
+        });
+    }
+    Ok(weld_coincident_vertices(mesh))
+}
+
+/// The vertices and faces of OBJ text that [`check_obj_text`] accepted: every `v` in file order
+/// (read as 32-bit numbers, then widened), every `f` fanned into triangles from its first corner
+/// (`a b c d` → `a b c`, `a c d`), its vertex indices resolved against the whole file (positive
+/// from the first `v`, negative back from the last `v` before the face). Objects, groups,
+/// materials, smoothing groups, lines and points do not split or add to the surface: a closed
+/// surface written as several groups sharing vertices is one mesh, as the file means it.
+fn read_checked_obj(text: &str) -> SurfaceMesh {
     let mut mesh = SurfaceMesh {
         positions_in_body: Vec::new(),
         triangles: Vec::new(),
     };
-    for model in &models {
-        let base = u32::try_from(mesh.positions_in_body.len())
-            .map_err(|_| obj_error("more than 2³² vertices".into()))?;
-        let m = &model.mesh;
-        mesh.positions_in_body.extend(
-            m.positions
-                .chunks_exact(3)
-                .map(|p| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
-        );
-        for t in m.indices.chunks_exact(3) {
-            let corners = [t[0], t[1], t[2]].map(|v| v.checked_add(base));
-            let [Some(a), Some(b), Some(c)] = corners else {
-                return Err(obj_error("more than 2³² vertices".into()));
-            };
-            mesh.triangles.push([a, b, c]);
+    let mut corners: Vec<u32> = Vec::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                // Checked: three numbers follow.
+                let mut xyz = words.map(|w| w.parse::<f32>().map_or(f64::NAN, f64::from));
+                let mut next = || xyz.next().unwrap_or(f64::NAN);
+                let (x, y, z) = (next(), next(), next());
+                mesh.positions_in_body.push(Vec3::new(x, y, z));
+            }
+            Some("f") => {
+                let so_far = mesh.positions_in_body.len() as i64;
+                corners.clear();
+                corners.extend(words.filter_map(|word| {
+                    // Checked: a nonzero vertex index within the file's vertices.
+                    let index: i64 = word.split('/').next()?.parse().ok()?;
+                    let zero_based = if index > 0 { index - 1 } else { so_far + index };
+                    u32::try_from(zero_based).ok()
+                }));
+                for k in 1..corners.len().saturating_sub(1) {
+                    mesh.triangles
+                        .push([corners[0], corners[k], corners[k + 1]]);
+                }
+            }
+            _ => {}
         }
     }
-    if mesh.triangles.is_empty() {
-        return Err(obj_error("no faces found".into()));
+    mesh
+}
+
+/// Merges vertices at exactly the same position into the first of them in the file, so that a
+/// surface written as separate triangles (a triangle soup, as a mesh converted from STL is) is read
+/// as the closed surface it describes. In a valid closed 2-manifold no two vertices share a
+/// position, so a mesh that is valid as written is unchanged; a vertex left unreferenced by the
+/// merge is dropped later with the others.
+fn weld_coincident_vertices(mut mesh: SurfaceMesh) -> SurfaceMesh {
+    let key = |p: &Vec3| [p.x, p.y, p.z].map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+    let mut order: Vec<u32> = (0..mesh.positions_in_body.len() as u32).collect();
+    // Ties keep the file's order, so each position's first vertex comes first.
+    order.sort_by_key(|&v| key(&mesh.positions_in_body[v as usize]));
+    let mut first_of = (0..mesh.positions_in_body.len() as u32).collect::<Vec<u32>>();
+    let mut merged = false;
+    for pair in order.windows(2) {
+        let [a, b] = [pair[0], pair[1]];
+        if key(&mesh.positions_in_body[a as usize]) == key(&mesh.positions_in_body[b as usize]) {
+            first_of[b as usize] = first_of[a as usize];
+            merged = true;
+        }
     }
-    Ok(mesh)
+    if merged {
+        for tri in &mut mesh.triangles {
+            *tri = tri.map(|v| first_of[v as usize]);
+        }
+    }
+    mesh
 }
 
 /// The line-by-line check of OBJ text: `(line, column, what is wrong)` of the first problem.
