@@ -227,28 +227,23 @@ fn an_obj_written_in_groups_or_as_separate_triangles_is_the_surface_it_describes
                     f 4/1 1/1 5/1 8/1\r\nl 1 7\r\n";
     assert_eq!(cube_as_read("exported", exported), plain);
     // A triangle soup (as converted from STL): every triangle with vertices of its own.
-    let corners: Vec<[f64; 3]> = CUBE_VERTICES
-        .lines()
-        .map(|l| {
-            let w: Vec<f64> = l
-                .split_whitespace()
-                .skip(1)
-                .map(|w| w.parse().unwrap())
-                .collect();
-            [w[0], w[1], w[2]]
-        })
-        .collect();
+    assert_eq!(cube_as_read("soup", &soup(&CUBE_FACES)), plain);
+}
+
+/// The cube's faces as a triangle soup: each triangle with three vertices of its own.
+fn soup(faces: &[&str]) -> String {
+    let corners: Vec<&str> = CUBE_VERTICES.lines().collect();
     let mut soup = String::new();
-    for face in CUBE_FACES {
+    for face in faces {
         for index in face.split_whitespace().skip(1) {
-            let [x, y, z] = corners[index.parse::<usize>().unwrap() - 1];
-            soup += &format!("v {x} {y} {z}\n");
+            soup += corners[index.parse::<usize>().unwrap() - 1];
+            soup += "\n";
         }
     }
-    for t in 0..12 {
+    for t in 0..faces.len() {
         soup += &format!("f {} {} {}\n", 3 * t + 1, 3 * t + 2, 3 * t + 3);
     }
-    assert_eq!(cube_as_read("soup", &soup), plain);
+    soup
 }
 
 #[test]
@@ -277,6 +272,24 @@ fn an_obj_error_names_the_vertices_as_numbered_in_the_file() {
     assert_eq!(
         e,
         "bad.toml:2:8: mesh (obj m.obj): the mesh is not a closed manifold: the edge between vertices 5 and 9 (0-based) is used by 1 triangle(s), expected 2"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn an_obj_error_names_the_file_vertices_a_merged_vertex_stands_for() {
+    // The cube as a soup without its last triangle (the cube's `f 4 5 8`): the hole's edge, the
+    // cube's corners 4 and 8, is named by the first vertex at each of its ends (the file's 4 and
+    // 11), each with the others at its position, so that the edge can be found in the file's
+    // faces (the cube's `f 3 4 8` is the file's 24, 25, 26).
+    let dir = obj_dir("soup-hole", &soup(&CUBE_FACES[..11]));
+    let e = error_in(OBJ_BODY, &dir);
+    assert_eq!(
+        e,
+        "bad.toml:2:8: mesh (obj m.obj): the mesh is not a closed manifold: the edge between \
+         vertices 4 and 11 (0-based) is used by 1 triangle(s), expected 2; vertex 4 also stands for \
+         the file's 25, 30, vertex 11 also stands for the file's 26, 28 (vertices at one position \
+         are merged into the first)"
     );
     std::fs::remove_dir_all(dir).unwrap();
 }

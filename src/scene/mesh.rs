@@ -119,6 +119,19 @@ pub enum MeshError {
 }
 
 impl MeshError {
+    /// The vertices the error names.
+    pub fn vertices(&self) -> Vec<u32> {
+        match *self {
+            MeshError::NonFinite { vertex } | MeshError::NonManifoldVertex { vertex } => {
+                vec![vertex]
+            }
+            MeshError::IndexOutOfRange { vertex, .. } => vec![vertex],
+            MeshError::Degenerate { a, b, c, .. } => vec![a, b, c],
+            MeshError::NotClosed { a, b, .. } | MeshError::Inconsistent { a, b } => vec![a, b],
+            _ => Vec::new(),
+        }
+    }
+
     /// The same error with its vertex numbers mapped through `before` (a vertex's number before a
     /// renumbering, by its number after).
     fn renumbered(self, before: &[u32]) -> MeshError {
@@ -640,8 +653,8 @@ pub fn box_mesh_per_axis(size: Vec3, subdivisions: [u32; 3]) -> SurfaceMesh {
 }
 
 /// Reads the surface an OBJ file describes, all its objects and groups as one mesh (see
-/// [`parse_obj`]).
-pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
+/// [`parse_obj`]), with the vertices merged into others at their position (for errors).
+pub fn load_obj(path: &Path) -> Result<(SurfaceMesh, MergedVertices), MeshError> {
     let obj_error = |reason: String| MeshError::Obj {
         path: path.display().to_string(),
         reason,
@@ -652,7 +665,44 @@ pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
         return Err(obj_error("not a regular file".into()));
     }
     let bytes = std::fs::read(path).map_err(|e| obj_error(e.to_string()))?;
-    parse_obj(&bytes, &path.display().to_string())
+    parse_obj_merged(&bytes, &path.display().to_string())
+}
+
+/// The file's vertices that [`parse_obj`] merged into another at exactly the same position: for
+/// each vertex kept (the first at its position in the file), the others, in file order; all
+/// 0-based, as numbered in the file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MergedVertices(BTreeMap<u32, Vec<u32>>);
+
+impl MergedVertices {
+    /// How many of the file's vertices were merged into another.
+    pub fn count(&self) -> usize {
+        self.0.values().map(Vec::len).sum()
+    }
+
+    /// For an error that names vertices, the file's vertices each named one also stands for, so
+    /// that the numbers can be found in the file's faces (empty when none of them was merged).
+    pub fn note_for(&self, error: &MeshError) -> String {
+        let mut note = String::new();
+        for vertex in error.vertices() {
+            if let Some(others) = self.0.get(&vertex) {
+                let others: Vec<String> = others.iter().map(u32::to_string).collect();
+                note += &format!(
+                    "{} {vertex} also stands for the file's {}",
+                    if note.is_empty() {
+                        "; vertex"
+                    } else {
+                        ", vertex"
+                    },
+                    others.join(", ")
+                );
+            }
+        }
+        if !note.is_empty() {
+            note += " (vertices at one position are merged into the first)";
+        }
+        note
+    }
 }
 
 /// Reads OBJ text from bytes; `name` is used in messages. The text is checked line by line first
@@ -661,6 +711,14 @@ pub fn load_obj(path: &Path) -> Result<SurfaceMesh, MeshError> {
 /// ([`read_checked_obj`]) only ever sees indices it can resolve; then vertices at the same
 /// position are merged ([`weld_coincident_vertices`]).
 pub fn parse_obj(bytes: &[u8], name: &str) -> Result<SurfaceMesh, MeshError> {
+    parse_obj_merged(bytes, name).map(|(mesh, _)| mesh)
+}
+
+/// [`parse_obj`], with the vertices it merged.
+pub fn parse_obj_merged(
+    bytes: &[u8],
+    name: &str,
+) -> Result<(SurfaceMesh, MergedVertices), MeshError> {
     let syntax = |line: usize, column: usize, message: String| MeshError::ObjSyntax {
         path: name.to_string(),
         line,
@@ -731,31 +789,32 @@ fn read_checked_obj(text: &str) -> SurfaceMesh {
     mesh
 }
 
-/// Merges vertices at exactly the same position into the first of them in the file, so that a
+/// Merges vertices at exactly the same position into the first of them in the file (and says
+/// which were merged into which), so that a
 /// surface written as separate triangles (a triangle soup, as a mesh converted from STL is) is read
 /// as the closed surface it describes. In a valid closed 2-manifold no two vertices share a
 /// position, so a mesh that is valid as written is unchanged; a vertex left unreferenced by the
 /// merge is dropped later with the others.
-fn weld_coincident_vertices(mut mesh: SurfaceMesh) -> SurfaceMesh {
+fn weld_coincident_vertices(mut mesh: SurfaceMesh) -> (SurfaceMesh, MergedVertices) {
     let key = |p: &Vec3| [p.x, p.y, p.z].map(|c| if c == 0.0 { 0 } else { c.to_bits() });
     let mut order: Vec<u32> = (0..mesh.positions_in_body.len() as u32).collect();
     // Ties keep the file's order, so each position's first vertex comes first.
     order.sort_by_key(|&v| key(&mesh.positions_in_body[v as usize]));
     let mut first_of = (0..mesh.positions_in_body.len() as u32).collect::<Vec<u32>>();
-    let mut merged = false;
+    let mut merged = MergedVertices::default();
     for pair in order.windows(2) {
         let [a, b] = [pair[0], pair[1]];
         if key(&mesh.positions_in_body[a as usize]) == key(&mesh.positions_in_body[b as usize]) {
             first_of[b as usize] = first_of[a as usize];
-            merged = true;
+            merged.0.entry(first_of[a as usize]).or_default().push(b);
         }
     }
-    if merged {
+    if merged.count() > 0 {
         for tri in &mut mesh.triangles {
             *tri = tri.map(|v| first_of[v as usize]);
         }
     }
-    mesh
+    (mesh, merged)
 }
 
 /// The line-by-line check of OBJ text: `(line, column, what is wrong)` of the first problem.

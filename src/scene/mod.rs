@@ -951,6 +951,8 @@ impl Ctx<'_> {
             Ok(())
         };
         let icosphere_vertices = |s: u32| 10 * 4usize.pow(s) + 2;
+        // (An OBJ file's vertices merged at their positions, named in its errors.)
+        let mut merged_in_file = mesh::MergedVertices::default();
         let (mut mesh, source) = if let Some(ico) = &m.icosphere {
             let radius = self.number(Some(&ico.get_ref().radius), 0.0, "radius", Rule::Positive)?;
             let subdivisions = self.subdivisions(&ico.get_ref().subdivisions, 2, 7)?;
@@ -976,15 +978,18 @@ impl Ctx<'_> {
         } else {
             let obj = m.obj.as_ref().expect("one mesh kind was given");
             let path = dir.join(obj.get_ref());
-            let mesh =
+            let (mesh, merged) =
                 mesh::load_obj(&path).map_err(|e| self.error(obj.span(), format!("mesh: {e}")))?;
             budget(mesh.vertex_count())?;
             assets.push((obj.get_ref().clone(), path));
+            merged_in_file = merged;
             (mesh, format!("obj {}", obj.get_ref()))
         };
         mesh.scale(scale);
-        mesh.validate()
-            .map_err(|e| self.error(section.span(), format!("mesh ({source}): {e}")))?;
+        mesh.validate().map_err(|e| {
+            let note = merged_in_file.note_for(&e);
+            self.error(section.span(), format!("mesh ({source}): {e}{note}"))
+        })?;
         mesh.recentre_on_surface_centre();
         mesh.reorder_for_locality();
         Ok((mesh, source))
