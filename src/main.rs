@@ -1063,14 +1063,21 @@ fn check(path: Option<&Path>) -> Result<()> {
                 palpa::dynamics::Integrator::Symplectic => String::new(),
             }
         );
+        // Past the explicit limit is a defect only where the body's integrator steps the node
+        // explicitly at dt.
+        let node_verdict = match integrator {
+            _ if ok => "stable".to_string(),
+            palpa::dynamics::Integrator::Multirate if fast > 0 => format!(
+                "past the explicit limit at dt: sub-stepped (×{substeps}) by the multirate integrator"
+            ),
+            palpa::dynamics::Integrator::Implicit => {
+                "past the explicit limit: stable under the implicit step".to_string()
+            }
+            _ => "UNSTABLE: stepped explicitly past its limit, the guard will act".to_string(),
+        };
         println!(
-            "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}) — {}",
-            body.name,
-            m.worst_node,
-            m.omega_dt,
-            m.limit,
-            m.margin,
-            if ok { "stable" } else { "UNSTABLE" }
+            "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}) — {node_verdict}",
+            body.name, m.worst_node, m.omega_dt, m.limit, m.margin,
         );
         let rigid_ok = m.rigid_margin >= 0.0;
         unstable |= !rigid_ok && integrator == palpa::dynamics::Integrator::Symplectic;

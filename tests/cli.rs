@@ -150,6 +150,13 @@ fn check_warns_before_a_scene_diverges() {
     .unwrap();
     let out = palpa(&["check", path]);
     assert!(text(&out).contains("nodes sub-stepped"), "{}", text(&out));
+    // Its worst node is past the explicit limit at dt, and said to be sub-stepped, not unstable.
+    assert!(
+        text(&out).contains("past the explicit limit at dt: sub-stepped (×"),
+        "{}",
+        text(&out)
+    );
+    assert!(!text(&out).contains("UNSTABLE"), "{}", text(&out));
     let out = palpa(&["run", path, "--duration", "1"]);
     assert!(out.status.success(), "{}", text(&out));
     assert!(!text(&out).contains("divergence guard"), "{}", text(&out));
