@@ -1036,6 +1036,23 @@ fn check(path: Option<&Path>) -> Result<()> {
     for line in crossing_lines(&world) {
         println!("  warning: {line}");
     }
+    for spec in &scene.bodies {
+        let shells = spec.mesh.shells();
+        if shells.len() > 1 {
+            println!(
+                "  warning: body `{}`'s mesh is {} separate surfaces ({} nodes): they move as one body, \
+                 every node tied to the one rigid component — give each its own `[[body]]` for \
+                 separate organs",
+                spec.name,
+                shells.len(),
+                shells
+                    .iter()
+                    .map(usize::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
     println!("  systems: {}", world.systems().names().join(", "));
     println!("  stability under the paper's scheme (semi-implicit Euler), per body:");
     let mut unstable = false;

@@ -93,6 +93,60 @@ fn check_and_run_warn_of_bodies_placed_with_their_surfaces_crossing() {
 }
 
 #[test]
+fn check_warns_of_a_mesh_of_separate_surfaces() {
+    // Two cubes in one OBJ file are one body: every node tied to one rigid component.
+    let dir = std::env::temp_dir().join(format!("palpa-cli-shells-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cube = |offset: f64, first: usize| {
+        let mut t = String::new();
+        for z in [0.0, 1.0] {
+            for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                t += &format!("v {} {y} {z}\n", x + offset);
+            }
+        }
+        for f in [
+            [1, 3, 2],
+            [1, 4, 3],
+            [5, 6, 7],
+            [5, 7, 8],
+            [1, 2, 6],
+            [1, 6, 5],
+            [2, 3, 7],
+            [2, 7, 6],
+            [3, 4, 8],
+            [3, 8, 7],
+            [4, 1, 5],
+            [4, 5, 8],
+        ] {
+            t += &format!("f {} {} {}\n", f[0] + first, f[1] + first, f[2] + first);
+        }
+        t
+    };
+    std::fs::write(dir.join("one.obj"), cube(0.0, 0)).unwrap();
+    std::fs::write(dir.join("two.obj"), cube(0.0, 0) + &cube(3.0, 8)).unwrap();
+    for (name, warned) in [("one", false), ("two", true)] {
+        let scene = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &scene,
+            format!("[[body]]\nname = \"b\"\nmesh = {{ obj = \"{name}.obj\", scale = 0.02 }}\n"),
+        )
+        .unwrap();
+        let out = palpa(&["check", scene.to_str().unwrap()]);
+        let t = text(&out);
+        assert!(out.status.success(), "{t}");
+        assert_eq!(
+            t.contains(
+                "warning: body `b`'s mesh is 2 separate surfaces (8, 8 nodes): they move as one body"
+            ),
+            warned,
+            "{t}"
+        );
+        assert_eq!(t.contains("separate surfaces"), warned, "{t}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn check_warns_before_a_scene_diverges() {
     // Light nodes and stiff springs: the paper's trap. The warning comes before any run; the run
     // then really diverges and says so with a non-zero exit.

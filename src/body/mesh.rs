@@ -36,6 +36,34 @@ impl SurfaceMesh {
         areas
     }
 
+    /// The node counts of the mesh's separate surfaces (its connected pieces), in the order of
+    /// their first vertex: one entry for a single closed surface.
+    pub fn shells(&self) -> Vec<usize> {
+        let n = self.positions_in_body.len();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn root(parent: &mut [u32], mut v: u32) -> u32 {
+            while parent[v as usize] != v {
+                let up = parent[parent[v as usize] as usize];
+                parent[v as usize] = up;
+                v = up;
+            }
+            v
+        }
+        for tri in &self.triangles {
+            let r = tri.map(|v| root(&mut parent, v));
+            let low = r.into_iter().min().unwrap_or(0);
+            for x in r {
+                parent[x as usize] = low;
+            }
+        }
+        // Roots are each piece's lowest vertex, so a piece's entry appears at its first vertex.
+        let mut count = vec![0usize; n];
+        for v in 0..n as u32 {
+            count[root(&mut parent, v) as usize] += 1;
+        }
+        count.into_iter().filter(|&c| c > 0).collect()
+    }
+
     /// Total surface area.
     pub fn area(&self) -> f64 {
         (0..self.triangles.len())
