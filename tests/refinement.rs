@@ -538,3 +538,67 @@ fn a_tool_leaving_the_tissue_from_inside_drags_nothing_out() {
     assert_eq!(force, 0.0);
     assert!(highest < RADIUS + 0.005, "no node dragged up: {highest}");
 }
+
+/// The implicit integrator refined under a probe that presses an organ onto the table: a node
+/// inserted at the tool after the integration must not leave the step's second solve (the one
+/// around the nodes the table stopped) working from the scratch the insertion sized afresh. Before
+/// the mend (2026-12-06, a scene written from the README alone) that solve divided by the fresh
+/// scratch's zero preconditioner: the state went non-finite at the insertion, and the solve's
+/// warm start stayed so, the divergence guard acting at every tick from then on (481 times in
+/// 1.8 s) with the organ frozen.
+#[test]
+fn the_implicit_integrator_refined_under_a_probe_on_a_table_stays_finite() {
+    for rule in ["area", "angle"] {
+        let scene = common::scene(&format!(
+            r#"
+            [[body]]
+            name = "organ"
+            mesh = {{ ellipsoid = {{ radii = [0.04, 0.03, 0.015], subdivisions = 3 }} }}
+            position = [0.0, 0.0, 0.015]
+            surface_mass = 0.06
+            rigid_mass = 0.03
+            surface_stiffness = 12.0
+            link_stiffness = 50.0
+            subdivision = {{ rule = "{rule}" }}
+            integrator = "implicit"
+            [[obstacle]]
+            name = "table"
+            plane = {{ normal = [0, 0, 1] }}
+            [[tool]]
+            name = "probe"
+            shape = {{ sphere = {{ radius = 0.005 }} }}
+            max_force = 1.5
+            script = [
+              {{ t = 0.0, position = [0.0, 0.0, 0.05] }},
+              {{ t = 0.4, position = [0.0, 0.0, 0.05] }},
+              {{ t = 0.7, position = [0.0, 0.0, 0.022] }},
+              {{ t = 1.2, position = [0.02, 0.0, 0.022] }},
+              {{ t = 1.5, position = [0.02, 0.0, 0.05] }},
+            ]
+            "#
+        ));
+        let mut world = World::from_scene(&scene);
+        let (mut refinements, mut guard_events, mut contacts) = (0, 0, 0);
+        for _ in 0..1800 {
+            world.step();
+            refinements += world.counters.refinements;
+            guard_events += world.counters.guard_events;
+            contacts += world.counters.obstacle_contacts;
+            let body = &world.bodies[0];
+            assert!(
+                body.surface
+                    .position_in_world
+                    .iter()
+                    .all(|p| p.iter().all(|x| x.is_finite()))
+            );
+        }
+        println!(
+            "rule {rule}: {refinements} insertions, {contacts} table contacts, {guard_events} guard events, \
+             {} nodes at the end",
+            world.bodies[0].node_count()
+        );
+        assert!(refinements > 0, "the probe refined nothing ({rule})");
+        assert!(contacts > 0, "the table stopped nothing ({rule})");
+        assert_eq!(guard_events, 0, "the divergence guard acted ({rule})");
+    }
+}

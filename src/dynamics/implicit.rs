@@ -70,6 +70,10 @@ pub struct Implicit {
     coarse_inverse: Option<Matrix6<f64>>,
     /// The body's topology version the scratch is sized for.
     synced_version: u64,
+    /// Whether the scratch holds this step's solve (prepared and solved since the last resize):
+    /// what [`Implicit::pin_contacts`] solves again from. A subdivision after the integration
+    /// resizes it, and the step's contacts are then answered without a second solve.
+    solved: bool,
     /// Topology changes followed keeping the warm start (nodes appended by a cut or a tear).
     pub follows: u64,
     /// Iterations of the last solve.
@@ -110,6 +114,7 @@ impl Implicit {
             rotation_block_inverse: Matrix3::zeros(),
             coarse_inverse: None,
             synced_version: 0,
+            solved: false,
             follows: 0,
             last_iterations: 0,
             last_residual: 0.0,
@@ -122,6 +127,7 @@ impl Implicit {
     /// warm start of the solver restarts from zero.
     pub fn resize(&mut self, body: &Body) {
         self.synced_version = body.topology_version;
+        self.solved = false;
         let n = body.node_count() + 2;
         let m = body.edges.len();
         self.u.clear();
@@ -173,6 +179,7 @@ impl Implicit {
             return;
         }
         self.synced_version = body.topology_version;
+        self.solved = false;
         self.follows += 1;
         let m = body.edges.len();
         self.u.resize(m, Vec3::zeros());
@@ -238,6 +245,11 @@ impl Implicit {
     /// component's force and torque to what its own integration needs to follow the solve.
     pub fn integrate(&mut self, body: &mut Body, h: f64) {
         let n = body.node_count();
+        // A solve that failed (its answer not a number, which the divergence guard undid) leaves
+        // no warm start: each later solve would start from it and fail again.
+        if !self.dv.iter().all(|d| d.iter().all(|x| x.is_finite())) {
+            self.dv.iter_mut().for_each(|d| *d = Vec3::zeros());
+        }
         self.prepare(body, h);
         for (pinned, contact) in self.pinned.iter_mut().zip(&body.surface.tool_contact) {
             *pinned = contact.tool != NO_TOOL;
@@ -268,15 +280,21 @@ impl Implicit {
         self.mask(body, Buffer::Dv);
         self.solve(body, h);
         self.apply(body, h);
+        self.solved = true;
     }
 
     /// After the obstacle contact stage: the nodes it stopped or slid (their velocity is no longer
     /// the solve's) are pinned at their new velocity and the rest — free nodes and rigid component —
     /// solved again around them, so the body answers a contact within the step it happens instead of
     /// storing the contact's displacement in its stiff links. Returns whether any node was newly
-    /// pinned (then the caller runs the contact stage again on the new trajectories).
+    /// pinned (then the caller runs the contact stage again on the new trajectories). Nothing is
+    /// solved again where the scratch was sized afresh since the integration (a subdivision at a
+    /// tool in between): its buffers no longer hold this step's solve.
     pub fn pin_contacts(&mut self, body: &mut Body, h: f64) -> bool {
         let n = body.node_count();
+        if !self.solved {
+            return false;
+        }
         let mut any = false;
         for i in 0..n {
             if !self.pinned[i] && body.surface.velocity_in_world[i] != self.solved_velocity[i] {
