@@ -181,7 +181,18 @@ fn main() -> Result<()> {
             #[cfg(not(feature = "record"))]
             None,
         ),
-        Command::Check { scene } => check(scene.as_deref()),
+        Command::Check { scene } => {
+            // `palpa check … | head`: a reader that closes the pipe ends the listing quietly, as
+            // for other listing tools, not with a panic in `println!`. (Only here: the commands
+            // that write files and recordings keep Rust's default and finish them.)
+            #[cfg(feature = "ipc")]
+            // SAFETY: sets the process's disposition of SIGPIPE back to the default, before any
+            // thread of this command is started; no handler is involved.
+            unsafe {
+                libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+            }
+            check(scene.as_deref())
+        }
         #[cfg(feature = "ipc")]
         Command::Serve(args) => serve(args),
         #[cfg(feature = "ipc")]
@@ -1090,7 +1101,8 @@ fn check(path: Option<&Path>) -> Result<()> {
             palpa::dynamics::Integrator::Implicit => {
                 "past the explicit limit: stable under the implicit step".to_string()
             }
-            _ => "UNSTABLE: stepped explicitly past its limit, the guard will act".to_string(),
+            _ => "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)"
+                .to_string(),
         };
         println!(
             "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}) — {node_verdict}",
@@ -1123,7 +1135,7 @@ fn check(path: Option<&Path>) -> Result<()> {
                 "past the explicit limit: solved with the nodes by the implicit step".to_string()
             }
             (_, false, _, _) => {
-                "UNSTABLE: stepped explicitly past its limit, the guard will act".to_string()
+                "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)".to_string()
             }
         };
         println!(
@@ -1134,7 +1146,8 @@ fn check(path: Option<&Path>) -> Result<()> {
     if unstable {
         println!(
             "warning: a node or a rigid component is past the stability limit of the explicit scheme and this\n\
-             \x20 body uses it: the divergence guard will keep restoring it. Use integrator = \"multirate\" (the default) or \"implicit\".\n\
+             \x20 body uses it: the divergence guard may keep restoring it (the bound is a safe one: a body a\n\
+             \x20 little past it may still run). Use integrator = \"multirate\" (the default) or \"implicit\".\n\
              \x20 ω² ≤ (k_link + 2 Σ k_edges) / m: more nodes for the same surface_mass means lighter nodes and\n\
              \x20 higher frequencies (the paper's trap). Lower dt, raise surface_mass, or lower surface_stiffness,\n\
              \x20 link_stiffness or the damping (which also tightens the limit: ω·Δt ≤ √(4 − 2 Δt c/m))."

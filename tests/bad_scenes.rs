@@ -443,3 +443,33 @@ fn mesh_sizes_out_of_range_are_errors_with_their_place() {
          more than the 1048576 a scene may have"
     );
 }
+
+#[test]
+fn a_value_of_the_wrong_shape_says_what_was_expected_in_the_scene_s_words() {
+    // Not serde's names for the scene's Rust types ("untagged enum ScaleValue", "struct
+    // SubdivisionSection"), found by a reader writing scenes from the README.
+    let e = error_of("[[body]]\nmesh = { icosphere = { radius = 0.05 }, scale = [0.1, 0.1] }\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:49: expected a number > 0 or three numbers > 0 (`[sx, sy, sz]`) for `scale`"
+    );
+    let e = error_of("[[body]]\nmesh = { icosphere = { radius = 0.05 } }\nsubdivision = true\n");
+    assert_eq!(
+        e,
+        "bad.toml:3:15: invalid type: boolean `true`, expected a table of subdivision settings, \
+         such as `{ rule = \"area\" }` (`{}` for the defaults)"
+    );
+    let e =
+        error_of("[[body]]\nmesh = { box = { size = [0.1, 0.1, 0.1], subdivisions = \"x\" } }\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:57: expected a whole number 0…100 or three of them (`[nx, ny, nz]`) for \
+         `subdivisions`"
+    );
+    let e = error_of("[[body]]\nmesh = \"ball\"\n");
+    assert_eq!(
+        e,
+        "bad.toml:2:8: invalid type: string \"ball\", expected a table with one mesh kind, such as \
+         `{ icosphere = { radius = 0.05 } }`"
+    );
+}

@@ -67,7 +67,10 @@ pub(super) struct BodySection {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a table of tearing settings, such as `{ strain = 0.3 }` (`{}` for the defaults)"
+)]
 pub(super) struct TearingSection {
     pub enabled: Option<bool>,
     pub strain: Option<Spanned<f64>>,
@@ -78,7 +81,10 @@ pub(super) struct TearingSection {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a table of plasticity settings, such as `{ yield = 0.002 }` (`{}` for the defaults)"
+)]
 pub(super) struct PlasticitySection {
     pub enabled: Option<bool>,
     #[serde(rename = "yield")]
@@ -88,7 +94,10 @@ pub(super) struct PlasticitySection {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a table of cutting settings, such as `{ resistance = 0.5 }` (`{}` for the defaults)"
+)]
 pub(super) struct CuttingSection {
     pub enabled: Option<bool>,
     pub resistance: Option<Spanned<f64>>,
@@ -100,7 +109,10 @@ pub(super) struct CuttingSection {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a table of subdivision settings, such as `{ rule = \"area\" }` (`{}` for the defaults)"
+)]
 pub(super) struct SubdivisionSection {
     pub enabled: Option<bool>,
     pub rule: Option<Spanned<String>>,
@@ -112,7 +124,10 @@ pub(super) struct SubdivisionSection {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a table with one mesh kind, such as `{ icosphere = { radius = 0.05 } }`"
+)]
 pub(super) struct MeshSection {
     pub icosphere: Option<Spanned<IcosphereSection>>,
     pub ellipsoid: Option<Spanned<EllipsoidSection>>,
@@ -132,7 +147,10 @@ pub(super) struct CapsuleMeshSection {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "expected a number > 0 or three numbers > 0 (`[sx, sy, sz]`) for `scale`"
+)]
 pub(super) enum ScaleValue {
     Uniform(f64),
     PerAxis([f64; 3]),
@@ -160,7 +178,10 @@ pub(super) struct BoxMeshSection {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "expected a whole number 0…100 or three of them (`[nx, ny, nz]`) for `subdivisions`"
+)]
 pub(super) enum BoxSubdivisions {
     Uniform(u32),
     PerAxis([u32; 3]),

@@ -58,8 +58,8 @@ struct Args {
     /// Publish the recorded feedback and mesh messages over iceoryx2 in real time.
     #[arg(long)]
     play: bool,
-    /// Playback speed factor.
-    #[arg(long, default_value_t = 1.0)]
+    /// Playback speed factor (> 0).
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, value_parser = palpa::daemon::values::positive)]
     speed: f64,
     /// Service prefix for --play.
     #[arg(long, default_value = "palpa")]
