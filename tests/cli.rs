@@ -300,6 +300,21 @@ fn numeric_options_refuse_zero_negative_and_non_finite_values() {
             "{command}: {t}"
         );
     }
+    // palpa-replay's playback speed (it said `Error: --speed must be > 0`, status 1; `-1` was
+    // taken for an option).
+    for value in positive {
+        let out = Command::new(env!("CARGO_BIN_EXE_palpa-replay"))
+            .args(["no-such.mcap", "--play", "--speed", value])
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "--speed {value}: {t}");
+        assert!(
+            t.contains(&format!("invalid value '{value}' for '--speed"))
+                && t.contains("must be a "),
+            "{t}"
+        );
+    }
     for (option, value) in [("--duration", "0"), ("--duration", "NaN"), ("--wait", "-1")] {
         let out = Command::new(env!("CARGO_BIN_EXE_palpa-zenoh"))
             .args(["--listen", "tcp/127.0.0.1:0", option, value])
