@@ -538,9 +538,33 @@ fn control_pauses_resumes_and_resets() {
     let resumed = ask(CONTROL_RESUME);
     assert_eq!(resumed.status, 0);
     assert!(resumed.tick >= paused.tick);
+    // A pose that is not a number, rejected and counted; the count is the session's: a reset
+    // keeps it (it went back to 0 with the tools' histories before 2026-12-06).
+    let poses = publisher_of(pose_service(&node, &p, "probe"));
+    let rejected = wait_for(10.0, || {
+        poses.update_connections().unwrap();
+        poses
+            .send_copy(ToolPoseV1 {
+                seq: 1,
+                position: [f64::NAN; 3],
+                orientation: [1.0, 0.0, 0.0, 0.0],
+                ..ToolPoseV1::default()
+            })
+            .unwrap();
+        newest_stats().filter(|s| s.rejected_inputs > 0)
+    })
+    .expect("the rejected pose counted in the statistics")
+    .rejected_inputs;
     let reset = ask(CONTROL_RESET);
     assert_eq!(reset.status, 0);
     assert!(reset.tick < 5, "reset goes back to tick 0: {}", reset.tick);
+    let after_reset = wait_for(5.0, || newest_stats().filter(|s| s.tick > reset.tick))
+        .expect("statistics after the reset");
+    assert!(
+        after_reset.rejected_inputs >= rejected,
+        "{} rejected inputs after the reset, {rejected} before",
+        after_reset.rejected_inputs
+    );
     assert_eq!(stats_paused.paused, 1);
     stop(daemon);
 }

@@ -517,8 +517,13 @@ impl<'a> Daemon<'a> {
                     self.known_bodies = self.world.bodies.len();
                     self.meshes.reset(&self.world);
                     self.stability_margin = least_stability_margin(&self.world);
+                    // Each tool's history is forgotten (it reappears with its next good pose, as
+                    // a bridge that connects), its totals kept: the statistics count the session.
                     for input in &mut self.inputs {
+                        let (rejected, disconnects) = (input.rejected, input.disconnects);
                         *input = ToolInputState::default();
+                        input.rejected = rejected;
+                        input.disconnects = disconnects;
                     }
                     0
                 }
