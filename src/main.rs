@@ -989,6 +989,10 @@ fn warn_of_crossings(world: &World, prefix: &str) {
     }
 }
 
+/// `palpa check`'s verdict on a node or rigid component stepped explicitly past its limit.
+const EXPLICIT_PAST_LIMIT: &str =
+    "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)";
+
 fn check(path: Option<&Path>) -> Result<()> {
     let scene = scene_from(path)?;
     let world = World::from_scene(&scene);
@@ -1101,8 +1105,7 @@ fn check(path: Option<&Path>) -> Result<()> {
             palpa::dynamics::Integrator::Implicit => {
                 "past the explicit limit: stable under the implicit step".to_string()
             }
-            _ => "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)"
-                .to_string(),
+            _ => EXPLICIT_PAST_LIMIT.to_string(),
         };
         println!(
             "    {}: worst node {} ω·Δt = {:.3} (limit {:.3} with its damping, margin {:.3}) — {node_verdict}",
@@ -1135,7 +1138,7 @@ fn check(path: Option<&Path>) -> Result<()> {
                 "past the explicit limit: solved with the nodes by the implicit step".to_string()
             }
             (_, false, _, _) => {
-                "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)".to_string()
+                EXPLICIT_PAST_LIMIT.to_string()
             }
         };
         println!(

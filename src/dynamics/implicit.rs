@@ -245,9 +245,9 @@ impl Implicit {
     /// component's force and torque to what its own integration needs to follow the solve.
     pub fn integrate(&mut self, body: &mut Body, h: f64) {
         let n = body.node_count();
-        // A solve that failed (its answer not a number, which the divergence guard undid) leaves
-        // no warm start: each later solve would start from it and fail again.
-        if !self.dv.iter().all(|d| d.iter().all(|x| x.is_finite())) {
+        // A solve that failed (its residual, and answer, not a number, which the divergence guard
+        // undid) leaves no warm start: each later solve would start from it and fail again.
+        if !self.last_residual.is_finite() {
             self.dv.iter_mut().for_each(|d| *d = Vec3::zeros());
         }
         self.prepare(body, h);
