@@ -344,7 +344,12 @@ impl Recording {
         let _ = world;
     }
 
-    fn finish(self) -> Result<()> {
+    /// Closes the recording of a session that ended at `world`'s tick.
+    fn finish(self, world: &World) -> Result<()> {
+        #[cfg(feature = "record")]
+        self.sink.session_end(world.tick);
+        #[cfg(not(feature = "record"))]
+        let _ = world;
         #[cfg(feature = "record")]
         if let Some(summary) = self.sink.finish()? {
             let total: u64 = summary.messages.values().sum();
@@ -417,7 +422,7 @@ fn run(
         }
     }
     let wall = started.elapsed().as_secs_f64();
-    recording.finish()?;
+    recording.finish(&world)?;
     for w in [out, feedback_out].into_iter().flatten() {
         w.into_inner()
             .map_err(|e| anyhow::anyhow!("cannot write a trace: {}", e.error()))?

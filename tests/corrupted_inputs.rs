@@ -317,22 +317,36 @@ fn verify_reports_a_recording_cut_short_after_its_scene_message_as_damaged() {
     let work = temp("work-cut");
     let all_ticks = verify(&whole, &work, |_, _| {}).unwrap().ticks;
     let _ = std::fs::remove_dir_all(&work);
-    // Two cuts after the scene message, both in the last chunk's record: in the middle (damaged
-    // bytes at the cut: what follows is lost) and at its end (the file just stops after a whole
-    // chunk, without the index records, summary and footer that close it — a killed daemon's file).
-    // And, for comparison, a whole file with one flipped byte in its summary section (an index).
+    // Three cuts after the scene message: in the middle of the last chunk of ticks (damaged bytes
+    // at the cut: what follows is lost), in the middle of the last chunk (the session's end event
+    // alone: the writer closed the chunk of the last tick before it), and at the end of the last
+    // chunk (the file just stops after a whole chunk, without the index records, summary and
+    // footer that close it — a killed daemon's file). And, for comparison, a whole file with one
+    // flipped byte in its summary section (an index).
     let records = record_offsets(&bytes);
-    let (last_chunk, _) = *records.iter().rfind(|r| r.1 == 0x06).unwrap();
+    let chunks: Vec<usize> = records
+        .iter()
+        .filter(|r| r.1 == 0x06)
+        .map(|r| r.0)
+        .collect();
     let (footer, _) = *records.iter().rfind(|r| r.1 == 0x02).unwrap();
-    let length = u64::from_le_bytes(bytes[last_chunk + 1..last_chunk + 9].try_into().unwrap());
-    let chunk_end = last_chunk + 9 + length as usize;
+    let length_at =
+        |chunk: usize| u64::from_le_bytes(bytes[chunk + 1..chunk + 9].try_into().unwrap()) as usize;
+    let last_chunk = chunks[chunks.len() - 1];
+    let ticks_chunk = chunks[chunks.len() - 2];
+    let chunk_end = last_chunk + 9 + length_at(last_chunk);
     let mut flipped = bytes.clone();
     flipped[footer - 5] ^= 0x10;
     for (what, variant, all_read) in [
         (
-            "cut inside its last chunk",
-            bytes[..last_chunk + 9 + length as usize / 2].to_vec(),
+            "cut inside its last chunk of ticks",
+            bytes[..ticks_chunk + 9 + length_at(ticks_chunk) / 2].to_vec(),
             false,
+        ),
+        (
+            "cut inside its last chunk",
+            bytes[..last_chunk + 9 + length_at(last_chunk) / 2].to_vec(),
+            true,
         ),
         (
             "cut after its last chunk",

@@ -531,3 +531,181 @@ fn play_publishes_the_recording_for_a_display() {
     assert!(last_feedback_tick >= 4990, "{last_feedback_tick}");
     std::fs::remove_file(path).ok();
 }
+
+/// The events of a recording, in file order.
+fn events_of(path: &Path) -> Vec<proto::Event> {
+    read_recording_file(path)
+        .unwrap()
+        .messages
+        .iter()
+        .filter(|m| m.topic == "/palpa/events")
+        .map(|m| proto::Event::decode(&m.data[..]).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_session_without_tools_is_recorded_and_replayed_to_its_last_tick() {
+    // No tool: the outputs are the mesh messages alone, at display rate (every 16 or 17 ticks), so
+    // the last 14 ticks of a 1 s session sent nothing. The session's end event says where it ended
+    // (before it, summary and replay stopped at the last mesh message: 986 ticks).
+    let path = temp("toolless.mcap");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/table_rest.toml");
+    let out = palpa(&[
+        "run",
+        scene,
+        "--duration",
+        "1",
+        "--record",
+        path.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let events = events_of(&path);
+    let end = events.last().expect("events");
+    assert_eq!(end.kind, proto::event::Kind::SessionEnd as i32);
+    assert_eq!(end.tick, 1000);
+    assert_eq!(
+        events
+            .iter()
+            .filter(|e| e.kind == proto::event::Kind::SessionEnd as i32)
+            .count(),
+        1
+    );
+    let summary = summary_of(&path);
+    assert_eq!(summary["ticks"], 1000, "{summary}");
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{verified}");
+    assert!(
+        verified.contains("verify: OK — 1000 ticks replayed, 0 feedback and"),
+        "{verified}"
+    );
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
+    // 700 lockstep poses pressing down, a reset, then 500 more pressing elsewhere: the world's tick
+    // starts again from 0 at the reset, so ticks 1..500 happen twice with different poses. Replay
+    // tells them apart by the reset between them (before 2026-12-06 it applied the inputs of both
+    // at the first and stopped at tick 500, short of the reset).
+    use iceoryx2::port::update_connections::UpdateConnections;
+    use palpa::ipc::payload::{CONTROL_RESET, ControlRequestV1, ToolPoseV1};
+    use palpa::ipc::services::{control_service, create_node, feedback_service, pose_service};
+    let path = temp("reset.mcap");
+    let prefix = format!("rs{}", std::process::id());
+    let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
+    let node = create_node().unwrap();
+    let poses = pose_service(&node, &prefix, "probe")
+        .unwrap()
+        .publisher_builder()
+        .create()
+        .unwrap();
+    let feedback = feedback_service(&node, &prefix, "probe")
+        .unwrap()
+        .subscriber_builder()
+        .create()
+        .unwrap();
+    let control = control_service(&node, &prefix)
+        .unwrap()
+        .client_builder()
+        .create()
+        .unwrap();
+    let wait = |what: &str, f: &mut dyn FnMut() -> bool| {
+        let deadline = Instant::now() + Duration::from_secs(20);
+        while !f() {
+            assert!(Instant::now() < deadline, "{what}");
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    };
+    let newest = || {
+        let mut last = None;
+        while let Some(s) = feedback.receive().unwrap() {
+            last = Some(*s.payload());
+        }
+        last
+    };
+    wait("the daemon is up", &mut || {
+        poses.update_connections().unwrap();
+        newest().is_some()
+    });
+    poses.update_connections().unwrap();
+    let mut answered = Vec::new();
+    let mut send = |seq: u64, position: [f64; 3]| {
+        poses
+            .send_copy(ToolPoseV1 {
+                seq,
+                device_time_ns: seq,
+                position,
+                orientation: [1.0, 0.0, 0.0, 0.0],
+                ..ToolPoseV1::default()
+            })
+            .unwrap();
+        let mut tick = 0;
+        wait("answered", &mut || {
+            newest()
+                .filter(|f| f.seq == seq)
+                .map(|f| tick = f.tick)
+                .is_some()
+        });
+        answered.push(tick);
+    };
+    for seq in 1..=700u64 {
+        send(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 700.0]);
+    }
+    // The lockstep daemon answers control requests when a pose comes.
+    let pending = control
+        .send_copy(ControlRequestV1 {
+            command: CONTROL_RESET,
+            ..ControlRequestV1::default()
+        })
+        .unwrap();
+    for seq in 701..=1200u64 {
+        let k = (seq - 700) as f64 / 500.0;
+        send(seq, [0.01 * k, 0.0, 0.07 - 0.025 * k]);
+    }
+    let mut response = None;
+    wait("the reset answered", &mut || {
+        response = pending.receive().unwrap().map(|r| *r.payload());
+        response.is_some()
+    });
+    assert_eq!(response.unwrap().status, 0);
+    assert_eq!(answered[699], 700);
+    assert_eq!(
+        answered[700], 1,
+        "the first pose after the reset is stepped at tick 1"
+    );
+    assert_eq!(answered[1199], 500);
+    common::sigterm(&daemon.0);
+    let (status, text) = ended(daemon);
+    assert!(status.success(), "{status}: {text}");
+    let events = events_of(&path);
+    // (A tick whose compute took longer than the period is a synchronicity miss, in lockstep too:
+    // the first, warming up, may be one on this shared machine.)
+    let kinds: Vec<(i32, u64)> = events
+        .iter()
+        .filter(|e| e.kind != proto::event::Kind::SynchronicityMiss as i32)
+        .map(|e| (e.kind, e.tick))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            (proto::event::Kind::Reset as i32, 700),
+            (proto::event::Kind::SessionEnd as i32, 500)
+        ]
+    );
+    let summary = summary_of(&path);
+    assert_eq!(summary["ticks"], 1200, "{summary}");
+    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 1200);
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{verified}");
+    assert!(
+        verified.contains("verify: OK — 1200 ticks replayed, 1200 feedback and"),
+        "{verified}"
+    );
+    std::fs::remove_file(&path).ok();
+}

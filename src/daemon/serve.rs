@@ -294,6 +294,7 @@ pub fn serve(
             deadline = now + period;
         }
     }
+    daemon.sink.session_end(daemon.world.tick);
     Ok(daemon.finish())
 }
 

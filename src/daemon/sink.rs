@@ -21,6 +21,8 @@ pub mod event {
     pub const RESUME: i32 = 8;
     /// A transection made a new body.
     pub const BODY_ADDED: i32 = 9;
+    /// The session ended at this tick (the last one simulated).
+    pub const SESSION_END: i32 = 10;
 }
 
 /// The recording side of a session: a recorder when the session is recorded (feature `record`), a
@@ -126,6 +128,12 @@ impl RecordSink {
         });
         #[cfg(not(feature = "record"))]
         let _ = (tick, kind, tool);
+    }
+
+    /// The session ended after the step that led to `tick` (written last, so a recording says how
+    /// long its session ran even when nothing else was sent at its last ticks).
+    pub fn session_end(&self, tick: u64) {
+        self.event(tick, event::SESSION_END, None);
     }
 
     /// The divergence guard restored body `body` (for `cause`) in the step that ended at `tick`.

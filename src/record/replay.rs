@@ -160,7 +160,8 @@ pub fn read_recording_file(path: &Path) -> Result<Recording, RecordingError> {
 pub struct SessionSummary {
     /// Messages per topic.
     pub messages: BTreeMap<String, u64>,
-    /// Last simulated tick recorded.
+    /// Ticks simulated: the last recorded tick, or the session's end where it says so (a
+    /// session with resets: the sum over its epochs, each ending at its reset's tick).
     pub ticks: u64,
     /// Simulated duration (s).
     pub duration_s: f64,
@@ -193,9 +194,11 @@ pub fn summarise(recording: &Recording) -> SessionSummary {
         damage: recording.damage.clone(),
         ..SessionSummary::default()
     };
+    // Ticks of the epochs before the last reset, and the last tick of the current one.
+    let (mut before, mut epoch_last) = (0u64, 0u64);
     for m in &recording.messages {
         *s.messages.entry(m.topic.clone()).or_default() += 1;
-        s.ticks = s.ticks.max(tick_at(m.log_time, recording.scene.dt));
+        epoch_last = epoch_last.max(tick_at(m.log_time, recording.scene.dt));
         if m.topic.ends_with("/feedback")
             && let Ok(f) = proto::Feedback::decode(&m.data[..])
         {
@@ -210,10 +213,15 @@ pub fn summarise(recording: &Recording) -> SessionSummary {
             match e.kind {
                 event::SYNCHRONICITY_MISS => s.misses += 1,
                 event::INPUT_REJECTED => s.rejects += 1,
+                event::RESET => {
+                    before = before.saturating_add(epoch_last);
+                    epoch_last = 0;
+                }
                 _ => {}
             }
         }
     }
+    s.ticks = before.saturating_add(epoch_last);
     s.duration_s = s.ticks as f64 * recording.scene.dt;
     s
 }
@@ -429,7 +437,7 @@ pub fn verify_timed(
     let mut replay = Replay::new(recording, work_dir)?;
     // The keyframe at tick 0 (and whatever else was recorded before the first step).
     replay.check_outputs()?;
-    while replay.world.tick < replay.last {
+    while replay.at() < replay.last {
         if replay.report.ticks >= replay.covered {
             return Err(VerifyError::Session(format!(
                 "{} ticks replayed and the outputs account for at most {}: damaged log times or resets",
@@ -438,11 +446,11 @@ pub fn verify_timed(
         }
         replay.step();
         replay.check_outputs()?;
-        if replay.world.tick % 1000 == 0 {
-            progress(replay.world.tick, replay.last);
+        if replay.report.ticks % 1000 == 0 {
+            progress(replay.report.ticks, replay.total);
         }
     }
-    if let Some(m) = replay.outputs.get(replay.next) {
+    if let Some(&(_, m)) = replay.outputs.get(replay.next) {
         return Err(VerifyError::Differs(Difference {
             tick: tick_at(m.log_time, replay.session.dt),
             channel: m.topic.clone(),
@@ -465,12 +473,18 @@ struct Replay<'r> {
     /// times), not a `palpa run` one.
     serve_mode: bool,
     tool_index: BTreeMap<String, usize>,
-    /// Inputs and events by tick, outputs in order.
-    inputs: BTreeMap<u64, Vec<proto::ToolInput>>,
-    events: BTreeMap<u64, Vec<proto::Event>>,
-    outputs: Vec<&'r RecordedMessage>,
-    /// The tick of the last output, and the most ticks the outputs can account for.
-    last: u64,
+    /// Inputs and events by epoch and tick, outputs (with their epoch) in order. A reset starts
+    /// an epoch: the world's tick starts again from 0, so a tick names a moment only with the
+    /// number of resets before it (counted in file order, the order the daemon did things in).
+    inputs: BTreeMap<(u64, u64), Vec<proto::ToolInput>>,
+    events: BTreeMap<(u64, u64), Vec<proto::Event>>,
+    outputs: Vec<(u64, &'r RecordedMessage)>,
+    /// The epoch being replayed.
+    epoch: u64,
+    /// Epoch and tick where the session ended (its end event, else its last output), the ticks
+    /// that makes over every epoch, and the most ticks the outputs can account for.
+    last: (u64, u64),
+    total: u64,
     covered: u64,
     /// Per tool: connected, its input rejected this tick, the sequence number and device time its
     /// feedback echoes.
@@ -505,34 +519,53 @@ impl<'r> Replay<'r> {
             .map(|(i, t)| (t.name.clone(), i))
             .collect();
         drive_by_recorded_poses(&mut world);
-        let mut inputs: BTreeMap<u64, Vec<proto::ToolInput>> = BTreeMap::new();
-        let mut events: BTreeMap<u64, Vec<proto::Event>> = BTreeMap::new();
-        let mut outputs: Vec<&RecordedMessage> = Vec::new();
+        let mut inputs: BTreeMap<(u64, u64), Vec<proto::ToolInput>> = BTreeMap::new();
+        let mut events: BTreeMap<(u64, u64), Vec<proto::Event>> = BTreeMap::new();
+        let mut outputs: Vec<(u64, &RecordedMessage)> = Vec::new();
+        let mut epoch = 0u64;
+        let mut ended = None;
+        // Ticks of the epochs before the current one.
+        let mut before = 0u64;
         for m in &recording.messages {
             if m.topic.ends_with("/input") {
                 let i: proto::ToolInput = decode_message(m)?;
                 check_input(&i).map_err(|reason| MessageError::new(m, reason))?;
-                inputs.entry(i.tick).or_default().push(i);
+                inputs.entry((epoch, i.tick)).or_default().push(i);
             } else if m.topic == "/palpa/events" {
                 let e: proto::Event = decode_message(m)?;
-                events.entry(e.tick).or_default().push(e);
+                let (kind, tick) = (e.kind, e.tick);
+                events.entry((epoch, tick)).or_default().push(e);
+                if kind == event::RESET {
+                    epoch += 1;
+                    before = before.saturating_add(tick);
+                } else if kind == event::SESSION_END {
+                    ended = Some((epoch, tick));
+                }
             } else if m.topic.ends_with("/feedback") || m.topic.starts_with("/palpa/mesh/") {
-                outputs.push(m);
+                outputs.push((epoch, m));
             }
         }
-        let last = outputs
+        let last_output = outputs
             .last()
-            .map_or(0, |m| tick_at(m.log_time, session.dt));
+            .map_or((0, 0), |&(e, m)| (e, tick_at(m.log_time, session.dt)));
+        let last = ended.map_or(last_output, |end| end.max(last_output));
         // Every body sends a mesh message every `display_every` ticks and every tool a feedback
-        // message every tick, so the outputs of a session of `last` ticks are at least
-        // `last / display_every`: a last tick beyond that is a damaged log time, which would
-        // otherwise be replayed for ages.
+        // message every tick, so the outputs of a session of `total` ticks are at least
+        // `total / display_every` (less one per epoch, and the ticks after the last display tick):
+        // a tick beyond that is a damaged log time, which would otherwise be replayed for ages.
         let display_every = meshes.display_every();
-        let covered = (outputs.len() as u64 + 1).saturating_mul(display_every);
-        if last > covered {
+        let covered = (outputs.len() as u64 + epoch + 2).saturating_mul(display_every);
+        let total = if last.0 == epoch {
+            before.saturating_add(last.1)
+        } else {
+            before
+        };
+        if total > covered {
             return Err(VerifyError::Session(format!(
-                "the last output message is at tick {last}, but {} output messages at one per {display_every} \
-                 ticks cover at most {covered} ticks: a damaged log time",
+                "the session ends at tick {} (after {} resets), but {} output messages at one per \
+                 {display_every} ticks cover at most {covered} ticks: a damaged log time",
+                last.1,
+                last.0,
                 outputs.len()
             )));
         }
@@ -550,7 +583,9 @@ impl<'r> Replay<'r> {
             inputs,
             events,
             outputs,
+            epoch: 0,
             last,
+            total,
             covered,
             next: 0,
             report: VerifyReport {
@@ -561,26 +596,36 @@ impl<'r> Replay<'r> {
         })
     }
 
-    fn tick_of(&self, m: &RecordedMessage) -> u64 {
-        tick_at(m.log_time, self.session.dt)
+    /// The epoch and tick of the world being replayed.
+    fn at(&self) -> (u64, u64) {
+        (self.epoch, self.world.tick)
+    }
+
+    /// The epoch and tick of a recorded output.
+    fn output_at(&self, &(epoch, m): &(u64, &RecordedMessage)) -> (u64, u64) {
+        (epoch, tick_at(m.log_time, self.session.dt))
     }
 
     /// One tick: the recorded reset, inputs and events of the world's tick applied, then a step.
     fn step(&mut self) {
-        let tick = self.world.tick;
         self.rejected.fill(false);
-        // A reset is applied once: the world's tick starts again from 0 and passes this tick again.
-        if let Some(list) = self.events.get_mut(&tick)
-            && list.iter().any(|e| e.kind == event::RESET)
+        // A reset starts the next epoch: the world's tick starts again from 0, and this step takes
+        // the new epoch's inputs and events of tick 0 (the daemon answers its control requests
+        // before it reads the poses).
+        if self
+            .events
+            .get(&self.at())
+            .is_some_and(|list| list.iter().any(|e| e.kind == event::RESET))
         {
-            list.retain(|e| e.kind != event::RESET);
+            self.epoch += 1;
             self.world = World::from_scene(&self.scene);
             drive_by_recorded_poses(&mut self.world);
             self.meshes.reset(&self.world);
             self.connected = self.world.tools.iter().map(|t| t.active).collect();
         }
-        self.take_inputs(tick);
-        self.take_events(tick);
+        let at = self.at();
+        self.take_inputs(at);
+        self.take_events(at);
         if !self.serve_mode {
             for (t, tool) in self.world.tools.iter().enumerate() {
                 self.connected[t] = tool.active || self.connected[t];
@@ -593,7 +638,7 @@ impl<'r> Replay<'r> {
         // The daemon marks a miss with the tick the step led to.
         if self
             .events
-            .get(&self.world.tick)
+            .get(&self.at())
             .is_some_and(|list| list.iter().any(|e| e.kind == event::SYNCHRONICITY_MISS))
         {
             self.times.at_misses_us.push(us);
@@ -606,9 +651,9 @@ impl<'r> Replay<'r> {
         self.report.ticks += 1;
     }
 
-    /// The recorded poses of `tick` set as the tools' targets.
-    fn take_inputs(&mut self, tick: u64) {
-        let Some(list) = self.inputs.get(&tick) else {
+    /// The recorded poses of `at` (epoch and tick) set as the tools' targets.
+    fn take_inputs(&mut self, at: (u64, u64)) {
+        let Some(list) = self.inputs.get(&at) else {
             return;
         };
         for input in list {
@@ -633,9 +678,9 @@ impl<'r> Replay<'r> {
         }
     }
 
-    /// The recorded rejections and disconnections of `tick`.
-    fn take_events(&mut self, tick: u64) {
-        let Some(list) = self.events.get(&tick) else {
+    /// The recorded rejections and disconnections of `at` (epoch and tick).
+    fn take_events(&mut self, at: (u64, u64)) {
+        let Some(list) = self.events.get(&at) else {
             return;
         };
         for e in list {
@@ -659,8 +704,10 @@ impl<'r> Replay<'r> {
         let tick = self.world.tick;
         let mesh_produced = self.produce_meshes();
         let mut mesh_cursor = 0;
-        while self.next < self.outputs.len() && self.tick_of(self.outputs[self.next]) == tick {
-            let m = self.outputs[self.next];
+        while self.next < self.outputs.len()
+            && self.output_at(&self.outputs[self.next]) == self.at()
+        {
+            let (_, m) = self.outputs[self.next];
             self.next += 1;
             let replayed: Vec<u8> = if m.topic.ends_with("/feedback") {
                 self.report.feedback += 1;
@@ -701,13 +748,12 @@ impl<'r> Replay<'r> {
     /// body a transection made, gets one of its own. Only the first is replayed as a request:
     /// when every body has a recorded keyframe at this tick.
     fn produce_meshes(&mut self) -> Vec<(bool, Vec<u8>)> {
-        let tick = self.world.tick;
         let mut keyframed = 0u64;
         let mut keyframes = 0usize;
-        for m in self.outputs[self.next..]
+        for &(_, m) in self.outputs[self.next..]
             .iter()
-            .take_while(|m| self.tick_of(m) == tick)
-            .filter(|m| m.topic == "/palpa/mesh/keyframe")
+            .take_while(|o| self.output_at(o) == self.at())
+            .filter(|(_, m)| m.topic == "/palpa/mesh/keyframe")
         {
             let body = proto::MeshKeyframe::decode(m.data.as_slice()).map_or(u32::MAX, |k| k.body);
             if body < 64 && keyframed & (1 << body) == 0 {

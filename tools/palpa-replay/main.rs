@@ -221,6 +221,7 @@ const MAX_LOG_TIME_JUMP_NS: u64 = 60_000_000_000;
 
 fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()> {
     use iceoryx2::prelude::PortFactory;
+    use palpa::daemon::sink::event;
     use palpa::ipc::payload::ToolFeedbackV1;
     use palpa::ipc::services::{IpcError, create_node, feedback_service, mesh_service};
     use palpa::record::proto;
@@ -280,6 +281,9 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
     let started = Instant::now();
     let mut published = 0u64;
     let mut previous_log_time = 0u64;
+    // A reset starts the world's clock (and the log times) again from 0: the session's time at a
+    // message is the log time plus the log times of the resets before it.
+    let mut epoch_start_ns = 0u64;
     for m in &recording.messages {
         // Simulated time passes evenly in a session; a jump of more than a minute is a damaged log
         // time, which would otherwise be waited for.
@@ -292,7 +296,14 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
             );
         }
         previous_log_time = previous_log_time.max(m.log_time);
-        let at = Duration::try_from_secs_f64(m.log_time as f64 * 1e-9 / args.speed)
+        let session_ns = epoch_start_ns.saturating_add(m.log_time);
+        if m.topic == "/palpa/events"
+            && proto::Event::decode(&m.data[..]).is_ok_and(|e| e.kind == event::RESET)
+        {
+            epoch_start_ns = session_ns;
+            previous_log_time = 0;
+        }
+        let at = Duration::try_from_secs_f64(session_ns as f64 * 1e-9 / args.speed)
             .map_err(|e| anyhow!("log time {} ns at speed {}: {e}", m.log_time, args.speed))?;
         if let Some(wait) = at.checked_sub(started.elapsed()) {
             std::thread::sleep(wait);
@@ -301,7 +312,7 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
             && channels.wants(&m.topic)
         {
             channels
-                .write(&m.topic, m.log_time, &m.data)
+                .write(&m.topic, session_ns, &m.data)
                 .map_err(|e| anyhow!(e))?;
         }
         if let Some(publisher) = feedback.get(&m.topic) {
