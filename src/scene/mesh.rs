@@ -591,7 +591,7 @@ pub fn capsule(radius: f64, length: f64, around: u32) -> SurfaceMesh {
 }
 
 /// An axis-aligned box of the given full size, centred on the origin, each face split into
-/// `(subdivisions + 1)²` quads of two triangles.
+/// `(subdivisions + 1)²` quads of two triangles (diagonals alternating from quad to quad).
 pub fn box_mesh(size: Vec3, subdivisions: u32) -> SurfaceMesh {
     box_mesh_per_axis(size, [subdivisions; 3])
 }
@@ -635,7 +635,15 @@ pub fn box_mesh_per_axis(size: Vec3, subdivisions: [u32; 3]) -> SurfaceMesh {
                         vertex(corner(1, 1), &mut positions),
                         vertex(corner(0, 1), &mut positions),
                     ];
-                    for mut tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                    // Diagonals alternate like a chessboard's squares: one diagonal everywhere
+                    // makes the membrane stiffer in shear along it, and a box dropped flat slid
+                    // along that diagonal as it collapsed.
+                    let split = if (i + j) % 2 == 0 {
+                        [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+                    } else {
+                        [[q[1], q[2], q[3]], [q[1], q[3], q[0]]]
+                    };
+                    for mut tri in split {
                         let [a, b, c] = tri.map(|k| positions[k as usize]);
                         if (b - a).cross(&(c - a)).dot(&normal) < 0.0 {
                             tri.swap(1, 2);
