@@ -987,6 +987,38 @@ fn crossing_lines(world: &World) -> Vec<String> {
         .collect()
 }
 
+/// An obstacle in the scene's words: where it is and which way is out.
+fn describe_obstacle(shape: &palpa::collision::obstacle::ObstacleShape) -> String {
+    use palpa::collision::obstacle::ObstacleShape;
+    let v = |v: &palpa::Vec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
+    match shape {
+        ObstacleShape::Plane {
+            point_in_world,
+            normal_in_world,
+        } => format!(
+            "plane through {} m, outward normal {}",
+            v(point_in_world),
+            v(normal_in_world)
+        ),
+        ObstacleShape::Box {
+            center_in_world,
+            half_extents,
+            world_from_box,
+        } => {
+            let q = world_from_box.quaternion();
+            format!(
+                "box centred at {} m, size {} m, orientation [{}, {}, {}, {}]",
+                v(center_in_world),
+                v(&(half_extents * 2.0)),
+                q.w,
+                q.i,
+                q.j,
+                q.k
+            )
+        }
+    }
+}
+
 /// Prints [`crossing_lines`] on the standard error, each after `prefix`.
 fn warn_of_crossings(world: &World, prefix: &str) {
     for line in crossing_lines(world) {
@@ -1038,8 +1070,11 @@ fn check(path: Option<&Path>) -> Result<()> {
     }
     for o in &scene.obstacles {
         println!(
-            "  obstacle {}: {:?}, friction {} (static {})",
-            o.name, o.shape, o.friction, o.static_friction
+            "  obstacle {}: {}, friction {} (static {})",
+            o.name,
+            describe_obstacle(&o.shape),
+            o.friction,
+            o.static_friction
         );
     }
     for a in &scene.attachments {

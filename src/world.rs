@@ -68,9 +68,16 @@ pub struct Systems {
     pub subdivision: bool,
     /// Some body can be cut and some tool is a blade.
     pub cutting: bool,
+    /// Some body can tear.
+    pub tearing: bool,
 }
 
 impl Systems {
+    /// The stage that cuts and tears (and turns a body cut or torn in parts into bodies) runs.
+    pub fn cuts_or_tears(&self) -> bool {
+        self.cutting || self.tearing
+    }
+
     /// Names of the systems that are on, in a fixed order (always-on parts of the model first).
     pub fn names(&self) -> Vec<&'static str> {
         let mut names = vec!["surface_springs", "links"];
@@ -88,6 +95,7 @@ impl Systems {
             (self.body_contact, "body_ccd"),
             (self.subdivision, "subdivision"),
             (self.cutting, "cutting"),
+            (self.tearing, "tearing"),
         ] {
             if on {
                 names.push(name);
@@ -636,8 +644,8 @@ impl World {
                 .tools
                 .iter()
                 .any(|t| matches!(t.shape, ToolShape::Blade { .. }))
-                && self.bodies.iter().any(|b| b.params.cutting.is_some())
-                || self.bodies.iter().any(|b| b.params.tearing.is_some()),
+                && self.bodies.iter().any(|b| b.params.cutting.is_some()),
+            tearing: self.bodies.iter().any(|b| b.params.tearing.is_some()),
         };
         for body in &mut self.bodies {
             if body.room_nodes() > 0 {
@@ -727,7 +735,7 @@ impl World {
     /// Reserves the spare bodies of the cutting bodies (`max_pieces` each, shaped like their origin).
     fn build_spares(&mut self, dt: f64, world_integrator: Integrator, tool_count: usize) {
         self.spares.clear();
-        if !self.systems.cutting {
+        if !self.systems.cuts_or_tears() {
             return;
         }
         for (origin, body) in self.bodies.iter().enumerate() {
@@ -1078,7 +1086,7 @@ impl World {
         self.commit_bodies(&mut counters);
         self.cut_tear_and_coarsen(clock, &mut counters);
         // A cut that opened edges may have cut a body in parts: each becomes a body.
-        if self.systems.cutting {
+        if self.systems.cuts_or_tears() {
             clock.enter(Stage::Transection);
             for b in 0..self.bodies.len() {
                 if self.cutters[b]
@@ -1155,7 +1163,7 @@ impl World {
             broad.held.refresh(&body.surface, body.topology_version);
         }
         let mut cutting_blades: u64 = 0;
-        if systems.cutting
+        if systems.cuts_or_tears()
             && let Some(cutter) = cutter.as_mut()
             && cutter.blades
         {
@@ -1469,7 +1477,7 @@ impl World {
             if cutter.is_some() {
                 kernel.blocks.drop_all();
             }
-            if systems.cutting
+            if systems.cuts_or_tears()
                 && let Some(cutter) = cutter.as_mut()
             {
                 // What this tick's cuts and tears change, for the force kernel and the solver.

@@ -43,6 +43,22 @@ fn check_lists_systems_and_the_stability_margin() {
     assert!(t.contains("organ: worst node"), "{t}");
     assert!(t.contains("— stable"), "{t}");
     assert!(!t.contains("warning"), "{t}");
+    // Obstacles in the scene's words (they were Rust debug structures), and a body that tears is
+    // `tearing`, not `cutting` (one stage does both; it was named for cuts).
+    let t = text(&palpa(&["check", "scenes/tear.toml"]));
+    assert!(
+        t.contains(
+            "obstacle tray: plane through [0, 0, -0.031] m, outward normal [0, 0, 1], friction 0.5"
+        ),
+        "{t}"
+    );
+    assert!(t.contains(", feedback, tearing\n"), "{t}");
+    let t = text(&palpa(&["check", "scenes/transection.toml"]));
+    assert!(
+        t.contains("obstacle block: box centred at [0, 0, 0.01] m, size [0.03, 0.06, 0.02] m, orientation [1, 0, 0, 0]"),
+        "{t}"
+    );
+    assert!(t.contains(", feedback, cutting\n"), "{t}");
 }
 
 #[test]
