@@ -473,3 +473,16 @@ fn a_value_of_the_wrong_shape_says_what_was_expected_in_the_scene_s_words() {
          `{ icosphere = { radius = 0.05 } }`"
     );
 }
+
+#[test]
+fn a_key_given_twice_is_named() {
+    // toml says only `duplicate key`; the message names it (its text at the error's place).
+    assert_eq!(
+        error_of("[world]\ndt = 0.001\ndt = 0.002\n"),
+        "bad.toml:3:1: duplicate key `dt` (a key may be given once in a table)"
+    );
+    assert_eq!(
+        error_of("[[body]]\nmesh = { icosphere = { radius = 0.03, radius = 0.04 } }\n"),
+        "bad.toml:2:39: duplicate key `radius` (a key may be given once in a table)"
+    );
+}

@@ -178,10 +178,7 @@ pub fn default_scene() -> Scene {
 /// Validates scene text; `name` is used in messages, `dir` resolves relative mesh paths.
 pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneError> {
     let ctx = Ctx { text, name };
-    let file: SceneFile = toml::from_str(text).map_err(|e| {
-        let span = e.span().unwrap_or(0..0);
-        ctx.error(span, e.message().trim_end().to_string())
-    })?;
+    let file: SceneFile = toml::from_str(text).map_err(|e| toml_error(&ctx, &e))?;
 
     let world_defaults = WorldParams::default();
     let world = match &file.world {
@@ -281,11 +278,23 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
 /// jaw }, ...]`, in the format of a scene tool's `script` (used by `palpa-device --script`).
 pub fn parse_script(text: &str, name: &str) -> Result<Vec<Keyframe>, SceneError> {
     let ctx = Ctx { text, name };
-    let file: ScriptFile = toml::from_str(text).map_err(|e| {
-        let span = e.span().unwrap_or(0..0);
-        ctx.error(span, e.message().trim_end().to_string())
-    })?;
+    let file: ScriptFile = toml::from_str(text).map_err(|e| toml_error(&ctx, &e))?;
     ctx.script(&file.script)
+}
+
+/// A TOML syntax or shape error at its place; toml's bare `duplicate key` gets the key's name (the
+/// text its span covers).
+fn toml_error(ctx: &Ctx, e: &toml::de::Error) -> SceneError {
+    let span = e.span().unwrap_or(0..0);
+    let mut message = e.message().trim_end().to_string();
+    if message == "duplicate key"
+        && let Some(key) = ctx.text.get(span.clone()).map(str::trim)
+        && !key.is_empty()
+        && key.len() <= 80
+    {
+        message = format!("duplicate key `{key}` (a key may be given once in a table)");
+    }
+    ctx.error(span, message)
 }
 
 /// What a number must satisfy.
