@@ -586,30 +586,26 @@ fn a_session_without_tools_is_recorded_and_replayed_to_its_last_tick() {
     std::fs::remove_file(&path).ok();
 }
 
-#[test]
-fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
-    // 700 lockstep poses pressing down, a reset, then 500 more pressing elsewhere: the world's tick
-    // starts again from 0 at the reset, so ticks 1..500 happen twice with different poses. Replay
-    // tells them apart by the reset between them (before 2026-12-06 it applied the inputs of both
-    // at the first and stopped at tick 500, short of the reset).
+/// Drives a lockstep daemon's probe through `plan`: a pose (its sequence number and position) is
+/// sent and answered before the next; a control command is sent before the next pose (a lockstep
+/// daemon answers control requests when a pose comes) and its response checked. Returns the tick
+/// each pose's feedback carried.
+fn drive_plan(prefix: &str, plan: &[Plan]) -> Vec<u64> {
     use iceoryx2::port::update_connections::UpdateConnections;
-    use palpa::ipc::payload::{CONTROL_RESET, ControlRequestV1, ToolPoseV1};
+    use palpa::ipc::payload::{ControlRequestV1, ToolPoseV1};
     use palpa::ipc::services::{control_service, create_node, feedback_service, pose_service};
-    let path = temp("reset.mcap");
-    let prefix = format!("rs{}", std::process::id());
-    let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
     let node = create_node().unwrap();
-    let poses = pose_service(&node, &prefix, "probe")
+    let poses = pose_service(&node, prefix, "probe")
         .unwrap()
         .publisher_builder()
         .create()
         .unwrap();
-    let feedback = feedback_service(&node, &prefix, "probe")
+    let feedback = feedback_service(&node, prefix, "probe")
         .unwrap()
         .subscriber_builder()
         .create()
         .unwrap();
-    let control = control_service(&node, &prefix)
+    let control = control_service(&node, prefix)
         .unwrap()
         .client_builder()
         .create()
@@ -634,64 +630,103 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
     });
     poses.update_connections().unwrap();
     let mut answered = Vec::new();
-    let mut send = |seq: u64, position: [f64; 3]| {
-        poses
-            .send_copy(ToolPoseV1 {
-                seq,
-                device_time_ns: seq,
-                position,
-                orientation: [1.0, 0.0, 0.0, 0.0],
-                ..ToolPoseV1::default()
-            })
-            .unwrap();
-        let mut tick = 0;
-        wait("answered", &mut || {
-            newest()
-                .filter(|f| f.seq == seq)
-                .map(|f| tick = f.tick)
-                .is_some()
+    let mut pending = Vec::new();
+    for step in plan {
+        match *step {
+            Plan::Pose(seq, position) => {
+                poses
+                    .send_copy(ToolPoseV1 {
+                        seq,
+                        device_time_ns: seq,
+                        position,
+                        orientation: [1.0, 0.0, 0.0, 0.0],
+                        ..ToolPoseV1::default()
+                    })
+                    .unwrap();
+                let mut tick = 0;
+                wait("answered", &mut || {
+                    newest()
+                        .filter(|f| f.seq == seq)
+                        .map(|f| tick = f.tick)
+                        .is_some()
+                });
+                answered.push(tick);
+            }
+            Plan::Control(command) => pending.push(
+                control
+                    .send_copy(ControlRequestV1 {
+                        command,
+                        ..ControlRequestV1::default()
+                    })
+                    .unwrap(),
+            ),
+        }
+    }
+    for p in pending {
+        let mut response = None;
+        wait("the control request answered", &mut || {
+            response = p.receive().unwrap().map(|r| *r.payload());
+            response.is_some()
         });
-        answered.push(tick);
-    };
-    for seq in 1..=700u64 {
-        send(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 700.0]);
+        assert_eq!(response.unwrap().status, 0);
     }
-    // The lockstep daemon answers control requests when a pose comes.
-    let pending = control
-        .send_copy(ControlRequestV1 {
-            command: CONTROL_RESET,
-            ..ControlRequestV1::default()
-        })
-        .unwrap();
-    for seq in 701..=1200u64 {
+    answered
+}
+
+/// A step of [`drive_plan`].
+enum Plan {
+    Pose(u64, [f64; 3]),
+    Control(u32),
+}
+
+/// The kinds and ticks of a recording's events but synchronicity misses (a tick whose compute took
+/// longer than the period is one, in lockstep too: the first, warming up, may be one on this shared
+/// machine).
+fn events_but_misses(path: &Path) -> Vec<(i32, u64)> {
+    events_of(path)
+        .iter()
+        .filter(|e| e.kind != proto::event::Kind::SynchronicityMiss as i32)
+        .map(|e| (e.kind, e.tick))
+        .collect()
+}
+
+/// Runs `plan` against a recording lockstep daemon, stops it; the recording's path and each pose's
+/// feedback tick.
+fn record_plan(name: &str, plan: &[Plan]) -> (PathBuf, Vec<u64>) {
+    let path = temp(name);
+    let prefix = format!("{}{}", &name[..2], std::process::id());
+    let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
+    let answered = drive_plan(&prefix, plan);
+    common::sigterm(&daemon.0);
+    let (status, text) = ended(daemon);
+    assert!(status.success(), "{status}: {text}");
+    (path, answered)
+}
+
+#[test]
+fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
+    // 700 lockstep poses pressing down, a reset, then 500 more pressing elsewhere: the world's tick
+    // starts again from 0 at the reset, so ticks 1..500 happen twice with different poses. Replay
+    // tells them apart by the reset between them (before 2026-12-06 it applied the inputs of both
+    // at the first and failed at tick 1: `contacts` recorded 1, replayed 0).
+    use palpa::ipc::payload::CONTROL_RESET;
+    let mut plan: Vec<Plan> = (1..=700u64)
+        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 700.0]))
+        .collect();
+    plan.push(Plan::Control(CONTROL_RESET));
+    plan.extend((701..=1200u64).map(|seq| {
         let k = (seq - 700) as f64 / 500.0;
-        send(seq, [0.01 * k, 0.0, 0.07 - 0.025 * k]);
-    }
-    let mut response = None;
-    wait("the reset answered", &mut || {
-        response = pending.receive().unwrap().map(|r| *r.payload());
-        response.is_some()
-    });
-    assert_eq!(response.unwrap().status, 0);
+        Plan::Pose(seq, [0.01 * k, 0.0, 0.07 - 0.025 * k])
+    }));
+    let (path, answered) = record_plan("reset.mcap", &plan);
     assert_eq!(answered[699], 700);
     assert_eq!(
         answered[700], 1,
         "the first pose after the reset is stepped at tick 1"
     );
     assert_eq!(answered[1199], 500);
-    common::sigterm(&daemon.0);
-    let (status, text) = ended(daemon);
-    assert!(status.success(), "{status}: {text}");
-    let events = events_of(&path);
-    // (A tick whose compute took longer than the period is a synchronicity miss, in lockstep too:
-    // the first, warming up, may be one on this shared machine.)
-    let kinds: Vec<(i32, u64)> = events
-        .iter()
-        .filter(|e| e.kind != proto::event::Kind::SynchronicityMiss as i32)
-        .map(|e| (e.kind, e.tick))
-        .collect();
     assert_eq!(
-        kinds,
+        events_but_misses(&path),
         [
             (proto::event::Kind::Reset as i32, 700),
             (proto::event::Kind::SessionEnd as i32, 500)
@@ -705,6 +740,50 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
     assert!(out.status.success(), "{verified}");
     assert!(
         verified.contains("verify: OK — 1200 ticks replayed, 1200 feedback and"),
+        "{verified}"
+    );
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn a_session_paused_and_resumed_replays_bit_for_bit() {
+    // 400 poses pressing, a pause, 100 poses moving the probe elsewhere while nothing steps (each is
+    // answered, none recorded as stepped), a resume, 400 more: the poses taken while paused set the
+    // target the first step after the resume starts from.
+    use palpa::ipc::payload::{CONTROL_PAUSE, CONTROL_RESUME};
+    let mut plan: Vec<Plan> = (1..=400u64)
+        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 400.0]))
+        .collect();
+    plan.push(Plan::Control(CONTROL_PAUSE));
+    plan.extend((401..=500u64).map(|seq| Plan::Pose(seq, [0.005, 0.0, 0.05])));
+    plan.push(Plan::Control(CONTROL_RESUME));
+    plan.extend((501..=900u64).map(|seq| {
+        let k = (seq - 500) as f64 / 400.0;
+        Plan::Pose(seq, [0.005 + 0.005 * k, 0.0, 0.05 - 0.01 * k])
+    }));
+    let (path, answered) = record_plan("pause.mcap", &plan);
+    // The pause is answered with the pose after it: that pose is taken, not stepped.
+    assert_eq!(answered[399], 400);
+    assert!(answered[400..500].iter().all(|&t| t == 400), "{answered:?}");
+    assert_eq!(answered[500], 401);
+    assert_eq!(answered[899], 800);
+    assert_eq!(
+        events_but_misses(&path),
+        [
+            (proto::event::Kind::Pause as i32, 400),
+            (proto::event::Kind::Resume as i32, 400),
+            (proto::event::Kind::SessionEnd as i32, 800)
+        ]
+    );
+    let summary = summary_of(&path);
+    assert_eq!(summary["ticks"], 800, "{summary}");
+    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 800);
+    assert_eq!(summary["messages"]["/palpa/tool/probe/input"], 900);
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{verified}");
+    assert!(
+        verified.contains("verify: OK — 800 ticks replayed, 800 feedback and"),
         "{verified}"
     );
     std::fs::remove_file(&path).ok();
