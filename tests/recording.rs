@@ -788,3 +788,34 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
     );
     std::fs::remove_file(&path).ok();
 }
+
+#[test]
+fn resets_answered_together_replay_as_one_after_the_other() {
+    // Two reset requests before one pose: the daemon answers both in the same tick, the second at
+    // the fresh world's tick 0 — two epochs, the first of no tick.
+    use palpa::ipc::payload::CONTROL_RESET;
+    let mut plan: Vec<Plan> = (1..=300u64)
+        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 300.0]))
+        .collect();
+    plan.push(Plan::Control(CONTROL_RESET));
+    plan.push(Plan::Control(CONTROL_RESET));
+    plan.extend((301..=600u64).map(|seq| Plan::Pose(seq, [0.004, 0.0, 0.06])));
+    let (path, answered) = record_plan("twice.mcap", &plan);
+    assert_eq!((answered[299], answered[300], answered[599]), (300, 1, 300));
+    assert_eq!(
+        events_but_misses(&path),
+        [
+            (proto::event::Kind::Reset as i32, 300),
+            (proto::event::Kind::Reset as i32, 0),
+            (proto::event::Kind::SessionEnd as i32, 300)
+        ]
+    );
+    assert_eq!(summary_of(&path)["ticks"], 600);
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        verified.contains("verify: OK — 600 ticks replayed, 600 feedback and"),
+        "{verified}"
+    );
+    std::fs::remove_file(&path).ok();
+}

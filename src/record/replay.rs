@@ -611,8 +611,8 @@ impl<'r> Replay<'r> {
         self.rejected.fill(false);
         // A reset starts the next epoch: the world's tick starts again from 0, and this step takes
         // the new epoch's inputs and events of tick 0 (the daemon answers its control requests
-        // before it reads the poses).
-        if self
+        // before it reads the poses). Resets answered together follow each other at tick 0.
+        while self
             .events
             .get(&self.at())
             .is_some_and(|list| list.iter().any(|e| e.kind == event::RESET))

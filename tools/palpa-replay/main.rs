@@ -116,7 +116,11 @@ fn main() -> Result<()> {
                     (Some(d), false) => format!(", read up to damaged bytes {d}"),
                 }
             );
-            println!("  tools: {}", s.tools.join(", "));
+            if s.tools.is_empty() {
+                println!("  tools: none");
+            } else {
+                println!("  tools: {}", s.tools.join(", "));
+            }
             println!(
                 "  max contacts {}, max force {:.4} N",
                 s.max_contacts, s.max_force
