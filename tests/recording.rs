@@ -576,13 +576,7 @@ fn a_session_without_tools_is_recorded_and_replayed_to_its_last_tick() {
     );
     let summary = summary_of(&path);
     assert_eq!(summary["ticks"], 1000, "{summary}");
-    let out = replay(&[path.to_str().unwrap(), "--verify"]);
-    let verified = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{verified}");
-    assert!(
-        verified.contains("verify: OK — 1000 ticks replayed, 0 feedback and"),
-        "{verified}"
-    );
+    assert_verifies(&path, 1000, 0);
     std::fs::remove_file(&path).ok();
 }
 
@@ -692,15 +686,29 @@ fn events_but_misses(path: &Path) -> Vec<(i32, u64)> {
 
 /// Runs `plan` against a recording lockstep daemon, stops it; the recording's path and each pose's
 /// feedback tick.
+/// `name` names the file (`plan-NAME.mcap`) and the daemon's prefix, apart from the other tests'.
 fn record_plan(name: &str, plan: &[Plan]) -> (PathBuf, Vec<u64>) {
-    let path = temp(name);
-    let prefix = format!("{}{}", &name[..2], std::process::id());
+    let path = temp(&format!("plan-{name}.mcap"));
+    let prefix = format!("plan{name}{}", std::process::id());
     let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
     let answered = drive_plan(&prefix, plan);
     common::sigterm(&daemon.0);
     let (status, text) = ended(daemon);
     assert!(status.success(), "{status}: {text}");
     (path, answered)
+}
+
+/// `palpa-replay --verify` passes on `path` with `ticks` ticks and `feedback` feedback messages.
+fn assert_verifies(path: &Path, ticks: u64, feedback: u64) {
+    let out = replay(&[path.to_str().unwrap(), "--verify"]);
+    let verified = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{verified}");
+    assert!(
+        verified.contains(&format!(
+            "verify: OK — {ticks} ticks replayed, {feedback} feedback and"
+        )),
+        "{verified}"
+    );
 }
 
 #[test]
@@ -718,7 +726,7 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
         let k = (seq - 700) as f64 / 500.0;
         Plan::Pose(seq, [0.01 * k, 0.0, 0.07 - 0.025 * k])
     }));
-    let (path, answered) = record_plan("reset.mcap", &plan);
+    let (path, answered) = record_plan("reset", &plan);
     assert_eq!(answered[699], 700);
     assert_eq!(
         answered[700], 1,
@@ -735,13 +743,7 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
     let summary = summary_of(&path);
     assert_eq!(summary["ticks"], 1200, "{summary}");
     assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 1200);
-    let out = replay(&[path.to_str().unwrap(), "--verify"]);
-    let verified = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{verified}");
-    assert!(
-        verified.contains("verify: OK — 1200 ticks replayed, 1200 feedback and"),
-        "{verified}"
-    );
+    assert_verifies(&path, 1200, 1200);
     std::fs::remove_file(&path).ok();
 }
 
@@ -761,7 +763,7 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
         let k = (seq - 500) as f64 / 400.0;
         Plan::Pose(seq, [0.005 + 0.005 * k, 0.0, 0.05 - 0.01 * k])
     }));
-    let (path, answered) = record_plan("pause.mcap", &plan);
+    let (path, answered) = record_plan("pause", &plan);
     // The pause is answered with the pose after it: that pose is taken, not stepped.
     assert_eq!(answered[399], 400);
     assert!(answered[400..500].iter().all(|&t| t == 400), "{answered:?}");
@@ -779,13 +781,7 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
     assert_eq!(summary["ticks"], 800, "{summary}");
     assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 800);
     assert_eq!(summary["messages"]["/palpa/tool/probe/input"], 900);
-    let out = replay(&[path.to_str().unwrap(), "--verify"]);
-    let verified = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{verified}");
-    assert!(
-        verified.contains("verify: OK — 800 ticks replayed, 800 feedback and"),
-        "{verified}"
-    );
+    assert_verifies(&path, 800, 800);
     std::fs::remove_file(&path).ok();
 }
 
@@ -800,7 +796,7 @@ fn resets_answered_together_replay_as_one_after_the_other() {
     plan.push(Plan::Control(CONTROL_RESET));
     plan.push(Plan::Control(CONTROL_RESET));
     plan.extend((301..=600u64).map(|seq| Plan::Pose(seq, [0.004, 0.0, 0.06])));
-    let (path, answered) = record_plan("twice.mcap", &plan);
+    let (path, answered) = record_plan("resettwice", &plan);
     assert_eq!((answered[299], answered[300], answered[599]), (300, 1, 300));
     assert_eq!(
         events_but_misses(&path),
@@ -811,11 +807,6 @@ fn resets_answered_together_replay_as_one_after_the_other() {
         ]
     );
     assert_eq!(summary_of(&path)["ticks"], 600);
-    let out = replay(&[path.to_str().unwrap(), "--verify"]);
-    let verified = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        verified.contains("verify: OK — 600 ticks replayed, 600 feedback and"),
-        "{verified}"
-    );
+    assert_verifies(&path, 600, 600);
     std::fs::remove_file(&path).ok();
 }

@@ -1014,12 +1014,14 @@ impl Ctx<'_> {
             ScaleValue::PerAxis(a) => Vec3::from(*a),
         };
         if !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+            // As written: one number, or the three.
+            let found = match s.get_ref() {
+                ScaleValue::Uniform(x) => format!("{x}"),
+                ScaleValue::PerAxis([x, y, z]) => format!("[{x}, {y}, {z}]"),
+            };
             return Err(self.error(
                 s.span(),
-                format!(
-                    "`scale` must be a number > 0 or three numbers > 0, found {:?}",
-                    v.as_slice()
-                ),
+                format!("`scale` must be a number > 0 or three numbers > 0, found {found}"),
             ));
         }
         Ok(v)
