@@ -35,13 +35,18 @@ fn replay(args: &[&str]) -> std::process::Output {
 
 /// Records 5 s of the probe press-and-stroke scene.
 fn record_session(name: &str) -> PathBuf {
+    record_run(name, "probe_press.toml", "5")
+}
+
+/// Records `palpa run` of a shipped scene for `seconds` into the temporary file `name`.
+fn record_run(name: &str, scene: &str, seconds: &str) -> PathBuf {
     let path = temp(name);
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/probe_press.toml");
+    let scene = format!("{}/scenes/{scene}", env!("CARGO_MANIFEST_DIR"));
     let out = palpa(&[
         "run",
-        scene,
+        &scene,
         "--duration",
-        "5",
+        seconds,
         "--record",
         path.to_str().unwrap(),
     ]);
@@ -548,21 +553,7 @@ fn a_session_without_tools_is_recorded_and_replayed_to_its_last_tick() {
     // No tool: the outputs are the mesh messages alone, at display rate (every 16 or 17 ticks), so
     // the last 14 ticks of a 1 s session sent nothing. The session's end event says where it ended
     // (before it, summary and replay stopped at the last mesh message: 986 ticks).
-    let path = temp("toolless.mcap");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/table_rest.toml");
-    let out = palpa(&[
-        "run",
-        scene,
-        "--duration",
-        "1",
-        "--record",
-        path.to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let path = record_run("toolless.mcap", "table_rest.toml", "1");
     let events = events_of(&path);
     let end = events.last().expect("events");
     assert_eq!(end.kind, proto::event::Kind::SessionEnd as i32);
@@ -673,6 +664,24 @@ enum Plan {
     Control(u32),
 }
 
+/// `count` poses pressing the probe 3 cm down from 8 cm above the table (sequence numbers from 1).
+fn press(count: u64) -> Vec<Plan> {
+    (1..=count)
+        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / count as f64]))
+        .collect()
+}
+
+/// The session's summary says `ticks` ticks and `feedback` feedback messages, and it verifies.
+fn assert_summary_and_verify(path: &Path, ticks: u64, feedback: u64) {
+    let summary = summary_of(path);
+    assert_eq!(summary["ticks"], ticks, "{summary}");
+    assert_eq!(
+        summary["messages"]["/palpa/tool/probe/feedback"], feedback,
+        "{summary}"
+    );
+    assert_verifies(path, ticks, feedback);
+}
+
 /// The kinds and ticks of a recording's events but synchronicity misses (a tick whose compute took
 /// longer than the period is one, in lockstep too: the first, warming up, may be one on this shared
 /// machine).
@@ -718,9 +727,7 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
     // tells them apart by the reset between them (before 2026-12-06 it applied the inputs of both
     // at the first and failed at tick 1: `contacts` recorded 1, replayed 0).
     use palpa::ipc::payload::CONTROL_RESET;
-    let mut plan: Vec<Plan> = (1..=700u64)
-        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 700.0]))
-        .collect();
+    let mut plan = press(700);
     plan.push(Plan::Control(CONTROL_RESET));
     plan.extend((701..=1200u64).map(|seq| {
         let k = (seq - 700) as f64 / 500.0;
@@ -740,10 +747,7 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
             (proto::event::Kind::SessionEnd as i32, 500)
         ]
     );
-    let summary = summary_of(&path);
-    assert_eq!(summary["ticks"], 1200, "{summary}");
-    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 1200);
-    assert_verifies(&path, 1200, 1200);
+    assert_summary_and_verify(&path, 1200, 1200);
     std::fs::remove_file(&path).ok();
 }
 
@@ -753,9 +757,7 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
     // answered, none recorded as stepped), a resume, 400 more: the poses taken while paused set the
     // target the first step after the resume starts from.
     use palpa::ipc::payload::{CONTROL_PAUSE, CONTROL_RESUME};
-    let mut plan: Vec<Plan> = (1..=400u64)
-        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 400.0]))
-        .collect();
+    let mut plan = press(400);
     plan.push(Plan::Control(CONTROL_PAUSE));
     plan.extend((401..=500u64).map(|seq| Plan::Pose(seq, [0.005, 0.0, 0.05])));
     plan.push(Plan::Control(CONTROL_RESUME));
@@ -777,11 +779,11 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
             (proto::event::Kind::SessionEnd as i32, 800)
         ]
     );
-    let summary = summary_of(&path);
-    assert_eq!(summary["ticks"], 800, "{summary}");
-    assert_eq!(summary["messages"]["/palpa/tool/probe/feedback"], 800);
-    assert_eq!(summary["messages"]["/palpa/tool/probe/input"], 900);
-    assert_verifies(&path, 800, 800);
+    assert_eq!(
+        summary_of(&path)["messages"]["/palpa/tool/probe/input"],
+        900
+    );
+    assert_summary_and_verify(&path, 800, 800);
     std::fs::remove_file(&path).ok();
 }
 
@@ -790,9 +792,7 @@ fn resets_answered_together_replay_as_one_after_the_other() {
     // Two reset requests before one pose: the daemon answers both in the same tick, the second at
     // the fresh world's tick 0 — two epochs, the first of no tick.
     use palpa::ipc::payload::CONTROL_RESET;
-    let mut plan: Vec<Plan> = (1..=300u64)
-        .map(|seq| Plan::Pose(seq, [0.0, 0.0, 0.08 - 0.03 * seq as f64 / 300.0]))
-        .collect();
+    let mut plan = press(300);
     plan.push(Plan::Control(CONTROL_RESET));
     plan.push(Plan::Control(CONTROL_RESET));
     plan.extend((301..=600u64).map(|seq| Plan::Pose(seq, [0.004, 0.0, 0.06])));
@@ -806,7 +806,6 @@ fn resets_answered_together_replay_as_one_after_the_other() {
             (proto::event::Kind::SessionEnd as i32, 300)
         ]
     );
-    assert_eq!(summary_of(&path)["ticks"], 600);
-    assert_verifies(&path, 600, 600);
+    assert_summary_and_verify(&path, 600, 600);
     std::fs::remove_file(&path).ok();
 }
