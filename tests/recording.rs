@@ -221,6 +221,8 @@ fn an_independent_python_reader_decodes_every_message() {
         serde_json::to_value(&ours.messages).unwrap()
     );
     assert_eq!(decoded["last_feedback_tick"], 5000);
+    assert_eq!(decoded["session_end_tick"], 5000);
+    assert_eq!(ours.ticks, 5000);
     assert!((decoded["max_force"].as_f64().unwrap() - ours.max_force).abs() < 1e-12);
     assert!(
         decoded["messages"]["/palpa/mesh/keyframe"]

@@ -3,7 +3,7 @@
 with the protobuf schemas embedded in it (the `mcap` and `mcap-protobuf-support` packages, not
 palpa's code) and prints, as JSON, the message count per topic and a few decoded figures, with the
 bodies of the session: those of the scene, then those transections added (`BODY_ADDED` events), in
-body-index order.
+body-index order, and the tick of the session's end (its `SESSION_END` event; null without one).
 
     python3 tools/python/read_recording.py session.mcap
 """
@@ -25,6 +25,7 @@ def main():
     scene_name = None
     bodies = []
     scene_bodies = 0
+    session_end_tick = None
     with open(sys.argv[1], "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, decoded in reader.iter_decoded_messages():
@@ -42,6 +43,8 @@ def main():
                     bodies[decoded.body] = decoded.body_name
                 elif kind == "RESET":
                     del bodies[scene_bodies:]
+                elif kind == "SESSION_END":
+                    session_end_tick = decoded.tick
             if schema.name == "palpa.Feedback":
                 f_ = decoded.force
                 max_force = max(max_force, (f_.x ** 2 + f_.y ** 2 + f_.z ** 2) ** 0.5)
@@ -50,6 +53,7 @@ def main():
                 assert len(decoded.positions) % 3 == 0 and len(decoded.triangles) % 3 == 0
     print(json.dumps({"scene": scene_name, "messages": dict(sorted(counts.items())),
                       "max_force": max_force, "last_feedback_tick": last_tick,
+                      "session_end_tick": session_end_tick,
                       "bodies": bodies}))
 
 
