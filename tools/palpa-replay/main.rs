@@ -232,9 +232,6 @@ fn play(recording: &palpa::record::replay::Recording, args: &Args) -> Result<()>
     use palpa::record::recorder::MessageOut;
     use prost::Message;
 
-    if !(args.speed.is_finite() && args.speed > 0.0) {
-        bail!("--speed must be > 0");
-    }
     let node = create_node().map_err(|e| anyhow!("{e}"))?;
     let mut feedback = std::collections::BTreeMap::new();
     for tool in &recording.scene.tools {
