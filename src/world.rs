@@ -19,6 +19,7 @@ use crate::contact::tool::{
     HeldNodes, capture_among, capture_broad_phase, grasp_nodes, hold_contact_nodes, jaws_touch,
     push_out_of_tools, release_nodes,
 };
+use crate::contact::tool_faces::{ToolFaces, press_faces};
 use crate::dynamics::Integrator;
 use crate::dynamics::attachment::Attachments;
 use crate::dynamics::guard::{Guard, body_energy, maxima as guard_maxima, maxima_by_blocks};
@@ -114,6 +115,12 @@ pub struct StepCounters {
     pub tool_captures: u32,
     /// Nodes moved out of a tool by the final guard (two parts squeezing a node).
     pub tool_push_outs: u32,
+    /// Triangles a tool pressed between their nodes this step (`contact::tool_faces`).
+    pub tool_face_contacts: u32,
+    /// Triangles in contact with a tool left unanswered: the tool's list was full.
+    pub tool_face_contacts_dropped: u32,
+    /// Triangles the face stage's broad phase kept (their box met a tool's reach).
+    pub tool_face_candidates: u32,
     /// Body–body contact stage.
     pub bodies: BodyContactCounters,
     /// Bodies the divergence guard restored this step.
@@ -359,14 +366,22 @@ impl NodeBoxCheck {
 struct BroadScratch {
     nodes: Vec<u32>,
     held: HeldNodes,
+    faces: ToolFaces,
 }
 
 impl BroadScratch {
-    fn with_capacity(nodes: usize) -> Self {
+    fn with_capacity((nodes, triangles): (usize, usize)) -> Self {
         Self {
             nodes: Vec::with_capacity(nodes),
             held: HeldNodes::with_capacity(nodes),
+            faces: ToolFaces::with_capacity((nodes, triangles)),
         }
+    }
+
+    /// The body changed in a way its topology version may not tell (a spare taken for a piece).
+    fn invalidate(&mut self) {
+        self.held.invalidate();
+        self.faces.invalidate();
     }
 }
 
@@ -696,10 +711,7 @@ impl World {
         self.broad = self
             .bodies
             .iter()
-            .map(|b| {
-                let (nodes, _) = b.mesh_capacity();
-                BroadScratch::with_capacity(nodes)
-            })
+            .map(|b| BroadScratch::with_capacity(b.mesh_capacity()))
             .collect();
         self.origin = (0..self.bodies.len()).collect();
         self.pieces_named = vec![0; self.bodies.len()];
@@ -751,14 +763,14 @@ impl World {
                 shell.reserve_room();
                 let refinement = shell.params.subdivision.map(|s| Refinement::new(&shell, s));
                 let cutter = Some(Cutter::new(&shell, settings, tool_count));
-                let (nodes, _) = shell.mesh_capacity();
+                let capacity = shell.mesh_capacity();
                 self.spares.push(Some(Spare {
                     origin,
                     solver: solver_for(&shell, world_integrator, dt),
                     kernel: ForceKernel::new(&shell),
                     refinement,
                     cutter,
-                    broad: BroadScratch::with_capacity(nodes),
+                    broad: BroadScratch::with_capacity(capacity),
                     body: shell,
                 }));
             }
@@ -856,7 +868,7 @@ impl World {
         cutter.connected = true;
         settle_after_transection(&mut self.solvers[b], Some(cutter), body, dt);
         self.kernels[b].invalidate();
-        self.broad[b].held.invalidate();
+        self.broad[b].invalidate();
         if let Some(refinement) = self.refinements[b].as_mut() {
             refinement.renumbered(body);
         }
@@ -898,7 +910,7 @@ impl World {
             self.kernels.push(spare.kernel);
             self.refinements.push(spare.refinement);
             self.cutters.push(spare.cutter);
-            spare.broad.held.invalidate();
+            spare.broad.invalidate();
             self.broad.push(spare.broad);
             self.guards.push(guard);
             self.origin.push(spare.origin);
@@ -1331,6 +1343,13 @@ impl World {
                 check.take(&body.surface, blocks);
             }
             capture_broad_phase(&body.surface, tool, blocks, &mut broad.nodes);
+            // A node whose triangles this tool pressed in the last tick is the faces' (a
+            // grasper's jaws take what they close on).
+            if !matches!(tool.shape, ToolShape::Grasper { .. }) {
+                broad
+                    .nodes
+                    .retain(|&i| !broad.faces.pressed_by(i as usize, tool_index));
+            }
             clock.enter(Stage::ToolCcd);
             counters.tool_captures +=
                 capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);
@@ -1347,6 +1366,23 @@ impl World {
                 solver.topology_changed(body, dt, None);
                 kernel.blocks.drop_all();
             }
+        }
+        // The tools against the triangles between the nodes, for a body that does not refine
+        // (one that does answers such a cut with a node, the paper's way).
+        if refinement.is_none() && self.params.face_contact {
+            clock.enter(Stage::ToolCcd);
+            let faces = press_faces(
+                &mut body.surface,
+                body.topology_version,
+                &mut self.tools,
+                cutting_blades,
+                dt,
+                Some(&mut kernel.blocks),
+                &mut broad.faces,
+            );
+            counters.tool_face_contacts += faces.contacts;
+            counters.tool_face_contacts_dropped += faces.dropped;
+            counters.tool_face_candidates += faces.candidates;
         }
     }
 

@@ -139,6 +139,7 @@ fn implicit_is_stable_on_a_stiff_node_and_damps_as_backward_euler_predicts() {
         air_viscosity: 0.0,
         integrator: Integrator::Implicit,
         helper_thread: true,
+        face_contact: true,
     });
     let mut body = Body::new("node", &mesh, &params, &Placement::default());
     body.surface.position_in_world[0] = Vec3::new(0.001, 0.0, 0.0);

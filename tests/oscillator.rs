@@ -31,6 +31,7 @@ fn single_node_world(dt: f64) -> World {
         air_viscosity: 0.0,
         integrator: palpa::dynamics::Integrator::Symplectic,
         helper_thread: true,
+        face_contact: true,
     });
     let mut body = Body::new("node", &mesh, &params, &Placement::default());
     body.surface.position_in_world[0] = Vec3::new(X0, 0.0, 0.0);

@@ -6,3 +6,4 @@ pub mod obstacle;
 pub mod overlap;
 mod self_pairs;
 pub mod tool;
+pub mod tool_faces;

@@ -68,6 +68,9 @@ pub struct WorldParams {
     /// [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more (the result bits are the same either
     /// way; see [`crate::dynamics::helper`]).
     pub helper_thread: bool,
+    /// Tools meet the triangles of a body between its nodes, not only its nodes
+    /// ([`crate::contact::tool_faces`]; bodies that refine at contact answer with new nodes).
+    pub face_contact: bool,
 }
 
 impl Default for WorldParams {
@@ -78,6 +81,7 @@ impl Default for WorldParams {
             air_viscosity: 0.0,
             integrator: Integrator::default(),
             helper_thread: true,
+            face_contact: true,
         }
     }
 }
@@ -197,6 +201,10 @@ pub fn parse_scene(text: &str, name: &str, dir: &Path) -> Result<Scene, SceneErr
                 .helper_thread
                 .as_ref()
                 .map_or(world_defaults.helper_thread, |v| *v.get_ref()),
+            face_contact: w
+                .face_contact
+                .as_ref()
+                .map_or(world_defaults.face_contact, |v| *v.get_ref()),
         },
     };
     if world.dt > 0.1 {

@@ -38,6 +38,7 @@ pub(super) struct WorldSection {
     pub air_viscosity: Option<Spanned<f64>>,
     pub integrator: Option<Spanned<String>>,
     pub helper_thread: Option<Spanned<bool>>,
+    pub face_contact: Option<Spanned<bool>>,
 }
 
 #[derive(Deserialize)]

@@ -279,7 +279,8 @@ pub struct Feedback {
     pub force_in_world: Vec3,
     /// Torque on the tool about its tip (N·m, world frame).
     pub torque_in_world: Vec3,
-    /// Nodes in contact with the tool at the end of the tick.
+    /// Contacts with the tool at the end of the tick: nodes it holds, and triangles it presses
+    /// between their nodes (`faces`).
     pub contacts: u32,
     /// The force was scaled down to `max_force`.
     pub clamped: bool,
@@ -291,6 +292,9 @@ pub struct Feedback {
     pub sliding: u32,
     /// Nodes a grasper holds in its jaws' frames this tick.
     pub grasped: u32,
+    /// Of the contacts, triangles the tool pressed between their nodes this tick
+    /// (`crate::contact::tool_faces`).
+    pub faces: u32,
 }
 
 /// A rigid tool.

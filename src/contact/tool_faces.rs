@@ -1,0 +1,602 @@
+//! Tool–face contact: a tool pressed on a body's surface *between* its nodes — a probe finer than
+//! the mesh, an instrument's shaft laid across a triangle, a jaw across an edge — is met by the
+//! triangles themselves, not only by the nodes the paper's contact zone holds (MODEL.md §4). Without
+//! it a tool slips between the nodes of a coarse mesh: no force, the surface passing through it.
+//!
+//! Each tick, after the tools captured the nodes they reach, for each tool part finer than a
+//! triangle (see [`FINE`]) that cuts into it from the triangle's outer side (judged at the start of
+//! the tick), or comes within a small gap of it (see [`MARGIN`]):
+//! - the contact point is the triangle's point closest to the part's axis, with barycentric weights
+//!   w, and the triangle must go from the axis towards that point (along its inward normal where the
+//!   axis reached it);
+//! - the positions: the triangle's free corners (not held by a tool) are moved that way until the
+//!   point is a radius from the axis, each by `w_k / m_k` times one multiplier (the smallest
+//!   mass-weighted correction). A projection: no velocity changes, so a triangle found deep in the
+//!   tool is not thrown out of it;
+//! - the velocities: the point's approach to the tool along the direction (less the gap it may
+//!   close in the tick) is taken from the corners' velocities the same way (an inelastic contact);
+//! - the tool feels the opposite of that impulse, `−μ Σ_k w_k n / Δt`, at the contact point.
+//!
+//! Triangles that share corners are answered together in a few Gauss–Seidel sweeps in triangle
+//! order (deterministic). At rest against a still tool the force fed back is the deformation force
+//! that pushes the triangles onto it, as for a held node. The contact is frictionless (the nodes the
+//! tool holds carry the Coulomb friction).
+//!
+//! Held nodes and faces: a cut with most of the contact point's weight on corners the tool holds is
+//! theirs to answer. A node whose triangles a tool pressed in the last tick is not captured by that
+//! tool (graspers excepted: their jaws take what they close on): held on the tool's surface, the
+//! triangles beside it would rise through a tool finer than them, and the contact would flicker
+//! between the node and its faces.
+//!
+//! Bodies that refine at contact (`subdivision`) answer such cuts the paper's way, with a node
+//! inserted there (`crate::topology::refine`); the world runs this stage for the others.
+//!
+//! The broad phase reads the node pass's blocks: the triangles are taken in chunks of [`CHUNK`]
+//! consecutive ones (close in space: a mesh's triangles are sorted by their first corner, its nodes
+//! along a space-filling curve), each with the list of node blocks its corners lie in, and a chunk
+//! is looked at only when the union of its blocks' boxes meets the tool's. The lists are rebuilt in
+//! reserved room when the topology changes; nothing is allocated on the tick.
+
+use crate::body::Surface;
+use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
+use crate::collision::tool::{
+    Aabb, closest_point_on_triangle, segment_segment_closest, segment_triangle_distance,
+};
+use crate::contact::tool::NO_TOOL;
+use crate::tool::{CapsulePart, Tool, ToolShape};
+use crate::{Room, Vec3};
+
+/// Triangles per chunk of the broad phase.
+pub const CHUNK: usize = 128;
+
+/// Node blocks a chunk lists; a chunk whose corners lie in more (or in a block past `u16::MAX`) is
+/// looked at every tick. (On a 40 962-node sphere, 640 chunks of 128 triangles: their corners lie in
+/// 3 to 12 blocks of 64 nodes; with chunks of 32 the loop over the 2 560 chunks alone cost about
+/// 20 µs a tick.)
+const CHUNK_BLOCKS: usize = 16;
+
+/// A tool part meets a triangle's face when its radius is less than `1 / FINE` of the radius of
+/// the circle through the triangle's corners at rest: a tool that fine fits between the corners
+/// (one as wide as that circle, or wider, meets a corner before its axis reaches the triangle's
+/// plane). Coarser parts are left to the nodes, as in the paper: the contact of those with the
+/// faces as well changed how organs pressed on one another came to rest (the body-contact tests'
+/// rest within a second, 1.5e-5 and 2.4e-5 J against 1e-5 with a threshold of 1).
+const FINE: f64 = 2.0;
+
+/// Gap, as a fraction of the tool part's radius, within which a triangle is in contact before it
+/// cuts into the tool (a speculative contact: it may approach by its gap in the tick, no faster),
+/// so that a triangle resting on the tool does not drop out of contact every other tick.
+const MARGIN: f64 = 0.02;
+
+/// The six bits of a box's sides that meet a reach (see `ToolFaces::broad_phase`).
+const ALL_SIDES: u8 = 0b11_1111;
+
+/// Gauss–Seidel sweeps over the triangles in contact with one tool.
+const SWEEPS: usize = 3;
+
+/// Least share of the contact point's barycentric weight on free corners: a point nearer the held
+/// corners than this is the held nodes' to answer (moving the free corners for it would throw them).
+const MIN_FREE_WEIGHT: f64 = 0.25;
+
+/// Most triangles in contact with one tool of one body in a tick; more are counted and left.
+pub const MAX_FACE_CONTACTS: usize = 256;
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Chunk {
+    blocks: [u16; CHUNK_BLOCKS],
+    /// Blocks listed; `u8::MAX`: more than [`CHUNK_BLOCKS`] (always looked at).
+    count: u8,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Hit {
+    corners: [u32; 3],
+    /// Barycentric weights of the contact point.
+    w: [f64; 3],
+    /// Inverse masses of the corners the contact may move (0 for a held corner).
+    inverse_mass: [f64; 3],
+    /// Direction the triangle is pushed (unit, from the tool's axis).
+    direction: Vec3,
+    /// The tool's axis point the contact keeps its distance from (end of the tick).
+    axis_point: Vec3,
+    /// The distance along `direction` the contact point must keep from `axis_point` (m).
+    clearance: f64,
+    /// Σ_k w_k² / m_k over the corners the contact may move (1/kg).
+    effective_inverse_mass: f64,
+    /// Velocity of the tool's point at the contact over the tick (m/s).
+    tool_velocity: Vec3,
+    /// Σ of the velocity multipliers applied (kg·m/s per unit weight: the impulse).
+    applied: f64,
+}
+
+/// What the face contacts did in a tick (one body, every tool).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaceCounts {
+    /// Triangles a tool pressed between their nodes.
+    pub contacts: u32,
+    /// Triangles left unanswered because a tool's list was full.
+    pub dropped: u32,
+    /// Triangles the broad phase kept (their box met a tool's reach), over the tools.
+    pub candidates: u32,
+}
+
+/// Scratch of the face contacts of one body: the broad phase's chunks and the tick's contacts,
+/// reserved for the body's mesh capacity (a copy keeps the room: its lists' capacities are limits
+/// the stage reads, and the nodes pressed in the last tick are state the next tick uses).
+#[derive(Clone, Debug, Default)]
+pub struct ToolFaces {
+    chunks: Room<Chunk>,
+    /// (topology version, triangles, nodes) the chunks were built for.
+    built: Option<(u64, usize, usize)>,
+    candidates: Room<u32>,
+    hits: Room<Hit>,
+    /// For each node, 1 + the index of the tool that pressed a triangle of it in the last tick's
+    /// face stage (0: none); nodes past its length: none.
+    pressed_by: Vec<u32>,
+    /// The nodes marked in `pressed_by`.
+    marked: Room<u32>,
+    /// Scratch of the broad phase: each node block's sides against the tool's reach.
+    sides: Room<u8>,
+}
+
+impl ToolFaces {
+    /// Room for a body of at most `nodes` nodes and `triangles` triangles.
+    pub fn with_capacity((nodes, triangles): (usize, usize)) -> Self {
+        Self {
+            chunks: Room::with_capacity(triangles.div_ceil(CHUNK)),
+            built: None,
+            candidates: Room::with_capacity(triangles),
+            hits: Room::with_capacity(MAX_FACE_CONTACTS),
+            pressed_by: vec![0; nodes],
+            marked: Room::with_capacity(3 * MAX_FACE_CONTACTS),
+            sides: Room::with_capacity(nodes.div_ceil(BLOCK)),
+        }
+    }
+
+    /// The body changed in a way its version may not tell (a spare body taken for a
+    /// transection): the chunks are built again before their next use, and no node counts as
+    /// pressed.
+    pub fn invalidate(&mut self) {
+        self.built = None;
+        self.unmark();
+    }
+
+    fn unmark(&mut self) {
+        for &v in &self.marked {
+            if let Some(p) = self.pressed_by.get_mut(v as usize) {
+                *p = 0;
+            }
+        }
+        self.marked.clear();
+    }
+
+    /// Whether tool `tool` pressed a triangle with corner `node` in the last face stage: such a
+    /// node is not captured by it (the faces carry that contact; holding the node at the tool's
+    /// surface would let the triangles beside it cut into the tool).
+    pub fn pressed_by(&self, node: usize, tool: usize) -> bool {
+        self.pressed_by
+            .get(node)
+            .is_some_and(|&p| p == tool as u32 + 1)
+    }
+
+    fn rebuild_if_stale(&mut self, surface: &Surface, version: u64) {
+        let key = (
+            version,
+            surface.triangles.len(),
+            surface.position_in_world.len(),
+        );
+        if self.built == Some(key) {
+            return;
+        }
+        self.chunks.clear();
+        let triangles = &surface.triangles;
+        if triangles.len().div_ceil(CHUNK) > self.chunks.capacity() {
+            // More triangles than reserved: no chunks (every triangle is looked at).
+            self.built = Some(key);
+            return;
+        }
+        for first in (0..triangles.len()).step_by(CHUNK) {
+            let mut chunk = Chunk {
+                blocks: [0; CHUNK_BLOCKS],
+                count: 0,
+            };
+            'corners: for tri in &triangles[first..(first + CHUNK).min(triangles.len())] {
+                for &v in tri {
+                    let Ok(block) = u16::try_from(v as usize / BLOCK) else {
+                        chunk.count = u8::MAX;
+                        break 'corners;
+                    };
+                    let count = chunk.count as usize;
+                    if chunk.blocks[..count].contains(&block) {
+                        continue;
+                    }
+                    if count == CHUNK_BLOCKS {
+                        chunk.count = u8::MAX;
+                        break 'corners;
+                    }
+                    chunk.blocks[count] = block;
+                    chunk.count += 1;
+                }
+            }
+            self.chunks.push(chunk);
+        }
+        self.built = Some(key);
+    }
+
+    /// The triangles whose corners' end positions may meet `reach`, in index order, into
+    /// `self.candidates`.
+    fn broad_phase(&mut self, surface: &Surface, reach: &Aabb, blocks: Option<&[NodeBlock]>) {
+        self.candidates.clear();
+        let (triangles, x) = (&surface.triangles, &surface.next_position_in_world);
+        let candidates = &mut self.candidates;
+        let mut among = |range: std::ops::Range<usize>| {
+            for t in range {
+                let [a, b, c] = triangles[t].map(|v| x[v as usize]);
+                if reach.overlaps_segment(&a.inf(&b).inf(&c), &a.sup(&b).sup(&c)) {
+                    candidates.push(t as u32);
+                }
+            }
+        };
+        let n = triangles.len();
+        let chunked = blocks
+            .filter(|b| self.chunks.len() == n.div_ceil(CHUNK) && b.len() <= self.sides.capacity());
+        let Some(blocks) = chunked else {
+            among(0..n);
+            return;
+        };
+        // Each block's sides against the reach, one bit per face of the box: bit 2k when its
+        // least coordinate k is at most the reach's greatest, bit 2k + 1 when its greatest is at
+        // least the reach's least. The union of some blocks' boxes meets the reach exactly when
+        // the bits of the blocks, joined, are all six: a chunk is judged by six bits, not boxes.
+        self.sides.clear();
+        self.sides.extend(blocks.iter().map(|b| {
+            if b.bad {
+                return ALL_SIDES;
+            }
+            let (lo, hi) = (&b.bounds.min, &b.bounds.max);
+            let mut bits = 0u8;
+            for k in 0..3 {
+                bits |= u8::from(lo[k] <= reach.max[k]) << (2 * k);
+                bits |= u8::from(hi[k] >= reach.min[k]) << (2 * k + 1);
+            }
+            bits
+        }));
+        for (k, chunk) in self.chunks.iter().enumerate() {
+            // The union of the blocks' boxes holds every corner's trajectory, so every triangle's
+            // end position: a chunk whose union misses the reach holds no candidate.
+            if chunk.count != u8::MAX {
+                let mut bits = 0u8;
+                for &block in &chunk.blocks[..chunk.count as usize] {
+                    bits |= self.sides.get(block as usize).copied().unwrap_or(ALL_SIDES);
+                }
+                if bits != ALL_SIDES {
+                    continue;
+                }
+            }
+            among(k * CHUNK..((k + 1) * CHUNK).min(n));
+        }
+    }
+}
+
+/// The box a tool's capsules fill at the end of the tick.
+fn reach_of(tool: &Tool) -> Aabb {
+    let mut reach = Aabb::empty();
+    let mut margin: f64 = 0.0;
+    for part in &tool.parts_end[..tool.part_count] {
+        reach.include(&part.a);
+        reach.include(&part.b);
+        margin = margin.max(part.radius);
+    }
+    reach.inflate(margin);
+    reach
+}
+
+/// The radius of the circle through a triangle's corners at rest (their homologues; m): a ball of
+/// that radius or more pressed on the triangle meets a corner before its centre reaches the
+/// triangle's plane, a finer one may pass between the corners. Infinite for a degenerate triangle.
+fn rest_circumradius(surface: &Surface, corners: [u32; 3]) -> f64 {
+    let h = &surface.homologue_in_body;
+    let [a, b, c] = corners.map(|v| h[v as usize]);
+    let twice_area = (b - a).cross(&(c - a)).norm();
+    let product = (b - a).norm() * (c - b).norm() * (a - c).norm();
+    if twice_area > 0.0 {
+        product / (2.0 * twice_area)
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The closest points of capsule `part`'s axis and triangle (a, b, c): (on the axis, on the
+/// triangle).
+fn closest_pair(part: &CapsulePart, a: &Vec3, b: &Vec3, c: &Vec3) -> (Vec3, Vec3) {
+    let (p, r) = (&part.a, &part.b);
+    let normal = (b - a).cross(&(c - a));
+    let (dp, dr) = ((p - a).dot(&normal), (r - a).dot(&normal));
+    if (dp <= 0.0 && dr >= 0.0) || (dp >= 0.0 && dr <= 0.0) {
+        let denominator = dp - dr;
+        let crossing = if denominator.abs() > f64::MIN_POSITIVE {
+            p + (r - p) * (dp / denominator)
+        } else {
+            *p
+        };
+        if (b - a).cross(&(crossing - a)).dot(&normal) >= 0.0
+            && (c - b).cross(&(crossing - b)).dot(&normal) >= 0.0
+            && (a - c).cross(&(crossing - c)).dot(&normal) >= 0.0
+        {
+            return (crossing, crossing);
+        }
+    }
+    let mut best = (*p, closest_point_on_triangle(p, a, b, c));
+    let mut least = (best.1 - best.0).norm_squared();
+    let mut consider = |on_axis: Vec3, on_triangle: Vec3| {
+        let d = (on_triangle - on_axis).norm_squared();
+        if d < least {
+            least = d;
+            best = (on_axis, on_triangle);
+        }
+    };
+    consider(*r, closest_point_on_triangle(r, a, b, c));
+    for (x, y) in [(a, b), (b, c), (c, a)] {
+        let (s, t) = segment_segment_closest(p, r, x, y);
+        consider(p + (r - p) * s, x + (y - x) * t);
+    }
+    best
+}
+
+/// Barycentric weights of `p` (a point of the triangle), each at least 0, summing to 1.
+fn weights(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
+    let (v0, v1, v2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (v0.dot(&v0), v0.dot(&v1), v1.dot(&v1));
+    let (d20, d21) = (v2.dot(&v0), v2.dot(&v1));
+    let denominator = d00 * d11 - d01 * d01;
+    if denominator.abs() <= f64::MIN_POSITIVE {
+        return None;
+    }
+    let v = (d11 * d20 - d01 * d21) / denominator;
+    let w = (d00 * d21 - d01 * d20) / denominator;
+    let w = [1.0 - v - w, v, w].map(|x| x.max(0.0));
+    let sum = w[0] + w[1] + w[2];
+    (sum > 0.0).then(|| w.map(|x| x / sum))
+}
+
+/// The contact of capsule `part` (end of the tick; `start` at its start) with triangle `corners`,
+/// when it cuts into the capsule from the triangle's outer side: (depth, direction, axis point,
+/// contact point).
+fn cut_into(
+    surface: &Surface,
+    corners: [u32; 3],
+    part: &CapsulePart,
+    start: &CapsulePart,
+) -> Option<(f64, Vec3, Vec3, Vec3)> {
+    let x = &surface.next_position_in_world;
+    let [a, b, c] = corners.map(|v| x[v as usize]);
+    let margin = MARGIN * part.radius;
+    if segment_triangle_distance(&part.a, &part.b, &a, &b, &c) >= part.radius + margin {
+        return None;
+    }
+    // The tool was on the triangle's outer side at the start of the tick (a tool that slipped
+    // into the tissue meets the surface from within: it is not pushed back out through it).
+    let x0 = &surface.position_in_world;
+    let [a0, b0, c0] = corners.map(|v| x0[v as usize]);
+    let outward0 = (b0 - a0).cross(&(c0 - a0));
+    let axis0 = start.closest_on_segment(&((a0 + b0 + c0) / 3.0));
+    if (axis0 - a0).dot(&outward0) <= 0.0 {
+        return None;
+    }
+    let outward = (b - a).cross(&(c - a)).try_normalize(f64::MIN_POSITIVE)?;
+    // The triangle's point deepest in the capsule: the closest pair of the axis and the triangle
+    // (the axis's ends against the triangle, its sides against the axis; where the axis crosses
+    // the triangle, that point, at distance 0).
+    let (axis_point, q) = closest_pair(part, &a, &b, &c);
+    let gap = q - axis_point;
+    let distance = gap.norm();
+    let direction = if gap.dot(&outward) < 0.0 && distance > 1e-12 {
+        gap / distance
+    } else {
+        // The axis reached the triangle or passed it: the triangle goes in, along its normal.
+        -outward
+    };
+    let depth = part.radius - direction.dot(&gap);
+    (depth > -margin).then_some((depth, direction, axis_point, q))
+}
+
+/// Answers every tool's contacts with the triangles of `surface` between their nodes (see the
+/// module's documentation). Tools whose bit is set in `skip` (bit k for tool k) are left out
+/// (blades cutting the body). `blocks` are the node pass's (their boxes
+/// hold every trajectory, or the call looks at every triangle); the nodes moved join them.
+#[allow(clippy::too_many_arguments)]
+pub fn press_faces(
+    surface: &mut Surface,
+    version: u64,
+    tools: &mut [Tool],
+    skip: u64,
+    dt: f64,
+    mut blocks: Option<&mut NodeBlocks>,
+    scratch: &mut ToolFaces,
+) -> FaceCounts {
+    let mut counts = FaceCounts::default();
+    if surface.triangles.is_empty() {
+        return counts;
+    }
+    scratch.rebuild_if_stale(surface, version);
+    scratch.unmark();
+    let n = surface.position_in_world.len();
+    for (index, tool) in tools.iter_mut().enumerate() {
+        if tool.part_count == 0 || (index < 64 && skip & (1 << index) != 0) {
+            continue;
+        }
+        // A grasper's jaws take what they close on (nodes held between them); its shaft meets
+        // the faces like any tool.
+        let grasper = matches!(tool.shape, ToolShape::Grasper { .. });
+        let reach = reach_of(tool);
+        let bounds = blocks.as_ref().and_then(|b| b.bounds(n));
+        scratch.broad_phase(surface, &reach, bounds);
+        counts.candidates += scratch.candidates.len() as u32;
+        scratch.hits.clear();
+        for &t in &scratch.candidates {
+            let corners = surface.triangles[t as usize];
+            let contact = corners.map(|v| surface.tool_contact[v as usize]);
+            if contact.iter().any(|c| c.grasp.is_some()) {
+                continue;
+            }
+            let free = contact.map(|c| c.tool == NO_TOOL);
+            if !free.iter().any(|&f| f) {
+                // Every corner held: a chord between held nodes, theirs to answer.
+                continue;
+            }
+            // The deepest cut over the tool's parts finer than the triangle as meshed (see
+            // `FINE`).
+            let circumradius = rest_circumradius(surface, corners);
+            let mut deepest: Option<(f64, Vec3, Vec3, Vec3, f64)> = None;
+            for k in 0..tool.part_count {
+                let part = &tool.parts_end[k];
+                if part.radius * FINE >= circumradius || (grasper && k < 2) {
+                    continue;
+                }
+                if let Some((depth, direction, axis_point, q)) =
+                    cut_into(surface, corners, part, &tool.parts_start[k])
+                    && deepest.is_none_or(|d| depth > d.0)
+                {
+                    deepest = Some((depth, direction, axis_point, q, part.radius));
+                }
+            }
+            let Some((_, direction, axis_point, q, radius)) = deepest else {
+                continue;
+            };
+            let x = &surface.next_position_in_world;
+            let [a, b, c] = corners.map(|v| x[v as usize]);
+            let Some(w) = weights(&q, &a, &b, &c) else {
+                continue;
+            };
+            let free_weight: f64 = (0..3).filter(|&k| free[k]).map(|k| w[k]).sum();
+            if free_weight < MIN_FREE_WEIGHT {
+                // The cut is at the held corners: theirs to answer.
+                continue;
+            }
+            if scratch.hits.len() == scratch.hits.capacity() {
+                counts.dropped += 1;
+                continue;
+            }
+            let inverse_mass =
+                [0, 1, 2].map(|k| f64::from(free[k]) * surface.inverse_mass[corners[k] as usize]);
+            let effective_inverse_mass: f64 = (0..3).map(|k| w[k] * w[k] * inverse_mass[k]).sum();
+            if effective_inverse_mass <= 0.0 || !effective_inverse_mass.is_finite() {
+                continue;
+            }
+            let on_tool = tool.pose.to_tool(&(axis_point + direction * radius));
+            scratch.hits.push(Hit {
+                corners,
+                w,
+                inverse_mass,
+                direction,
+                axis_point,
+                clearance: radius,
+                effective_inverse_mass,
+                tool_velocity: tool.point_velocity(&on_tool, dt),
+                applied: 0.0,
+            });
+        }
+        if scratch.hits.is_empty() {
+            continue;
+        }
+        // Gauss–Seidel over the contacts, in triangle order: first the positions (a projection
+        // out of the tool, which changes no velocity: a triangle found deep in the tool is not
+        // thrown out of it), then the velocities (the contact point's approach to the tool along
+        // the contact's direction taken away: an inelastic contact). Only the second is an impulse:
+        // it is what the tool feels.
+        for _ in 0..SWEEPS {
+            let mut moved = false;
+            for hit in scratch.hits.iter() {
+                let x = &mut surface.next_position_in_world;
+                let q = (0..3).fold(Vec3::zeros(), |q, k| {
+                    q + x[hit.corners[k] as usize] * hit.w[k]
+                });
+                let violation = hit.clearance - hit.direction.dot(&(q - hit.axis_point));
+                if violation <= 0.0 {
+                    continue;
+                }
+                let lambda = violation / hit.effective_inverse_mass;
+                for k in 0..3 {
+                    x[hit.corners[k] as usize] +=
+                        hit.direction * (lambda * hit.w[k] * hit.inverse_mass[k]);
+                }
+                moved = true;
+            }
+            if !moved {
+                break;
+            }
+        }
+        for _ in 0..SWEEPS {
+            let mut changed = false;
+            for hit in scratch.hits.iter_mut() {
+                let v = &mut surface.velocity_in_world;
+                let at = (0..3).fold(Vec3::zeros(), |q, k| {
+                    q + v[hit.corners[k] as usize] * hit.w[k]
+                });
+                // The gap left after the projection may be closed within the tick, no more.
+                let x = &surface.next_position_in_world;
+                let q = (0..3).fold(Vec3::zeros(), |q, k| {
+                    q + x[hit.corners[k] as usize] * hit.w[k]
+                });
+                let gap = (hit.direction.dot(&(q - hit.axis_point)) - hit.clearance).max(0.0);
+                let approach = -hit.direction.dot(&(at - hit.tool_velocity)) - gap / dt;
+                if approach <= 0.0 {
+                    continue;
+                }
+                let mu = approach / hit.effective_inverse_mass;
+                for k in 0..3 {
+                    v[hit.corners[k] as usize] +=
+                        hit.direction * (mu * hit.w[k] * hit.inverse_mass[k]);
+                }
+                hit.applied += mu;
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+        // The feedback: the opposite of the impulse each contact gave its triangle.
+        let x = &surface.next_position_in_world;
+        for hit in &scratch.hits {
+            if hit.applied <= 0.0 {
+                continue;
+            }
+            // Σ m_k Δv_k = μ Σ_k w_k (over the corners it moves).
+            let moved_weight: f64 = (0..3)
+                .filter(|&k| hit.inverse_mass[k] > 0.0)
+                .map(|k| hit.w[k])
+                .sum();
+            let force = hit.direction * (-hit.applied * moved_weight / dt);
+            let at = (0..3).fold(Vec3::zeros(), |q, k| {
+                q + x[hit.corners[k] as usize] * hit.w[k]
+            });
+            let fb = &mut tool.feedback;
+            fb.force_in_world += force;
+            fb.torque_in_world += (at - tool.pose.position_in_world).cross(&force);
+            fb.contacts += 1;
+            fb.faces += 1;
+            fb.normal_force += force.norm();
+            counts.contacts += 1;
+        }
+        for hit in &scratch.hits {
+            for &v in &hit.corners {
+                if let Some(p) = scratch.pressed_by.get_mut(v as usize)
+                    && scratch.marked.len() < scratch.marked.capacity()
+                {
+                    *p = index as u32 + 1;
+                    scratch.marked.push(v);
+                }
+            }
+        }
+        if let Some(blocks) = blocks.as_mut() {
+            for hit in &scratch.hits {
+                for k in 0..3 {
+                    if hit.inverse_mass[k] > 0.0 {
+                        blocks.include(surface, hit.corners[k] as usize);
+                    }
+                }
+            }
+        }
+    }
+    counts
+}

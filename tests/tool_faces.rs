@@ -1,0 +1,356 @@
+//! Tools finer than the mesh: contact of a tool with the triangles between a body's nodes
+//! (`palpa::contact::tool_faces`). Without it a probe or a shaft slips between the nodes of a coarse
+//! mesh — no force, the surface passing through the tool; with it the triangles keep the tool out,
+//! the force fed back is the tissue's, and the momentum the tissue gets is what the device feels.
+//!
+//! Figures: `cargo test --release --test tool_faces -- --nocapture`.
+
+mod common;
+
+use palpa::Vec3;
+use palpa::world::World;
+
+/// A fixed ball (radius 5 cm, 162 nodes: edges about 2 cm) in zero gravity, and a tool aimed at
+/// the middle of its topmost triangle, from 1 cm above the surface down to `press` m below where
+/// the triangle's middle was, in 0.5 s, then held. `along`: the tool's tip is that far from the
+/// middle, its axis (+z of the tool) turned to point along it (a shaft laid across the triangle).
+fn pressed_ball(face_contact: bool, tool_shape: &str, along: Vec3, press: f64) -> (World, Vec3) {
+    let body = r#"
+[[body]]
+name = "ball"
+mesh = { icosphere = { radius = 0.05, subdivisions = 2 } }
+position = [0.0, 0.0, 0.0]
+surface_mass = 0.1
+rigid_mass = 0.5
+surface_stiffness = 30.0
+surface_damping = 0.02
+link_stiffness = 20.0
+link_damping = 0.05
+fixed = true
+"#;
+    let world_section =
+        format!("[world]\ngravity = [0.0, 0.0, 0.0]\nface_contact = {face_contact}\n");
+    // Where the topmost triangle's middle is.
+    let probe_world = World::from_scene(&common::scene(&format!("{world_section}{body}")));
+    let s = &probe_world.bodies[0].surface;
+    let middle = |t: &[u32; 3]| {
+        t.iter()
+            .map(|&v| s.position_in_world[v as usize])
+            .sum::<Vec3>()
+            / 3.0
+    };
+    let top = s
+        .triangles
+        .iter()
+        .map(middle)
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .expect("triangles");
+    let start = top + along + Vec3::new(0.0, 0.0, 0.01);
+    let end = top + along - Vec3::new(0.0, 0.0, press);
+    let turn = nalgebra::UnitQuaternion::rotation_between(&Vec3::z(), &along)
+        .unwrap_or_else(nalgebra::UnitQuaternion::identity);
+    let text = format!(
+        "{world_section}{body}
+[[tool]]
+name = \"tool\"
+shape = {tool_shape}
+script = [
+  {{ t = 0.0, position = [{}, {}, {}], orientation = {q} }},
+  {{ t = 0.5, position = [{}, {}, {}], orientation = {q} }},
+]
+",
+        start.x,
+        start.y,
+        start.z,
+        end.x,
+        end.y,
+        end.z,
+        q = format!("[{}, {}, {}, {}]", turn.w, turn.i, turn.j, turn.k)
+    );
+    (World::from_scene(&common::scene(&text)), top)
+}
+
+/// The least distance from the tool's capsules to the body's surface, less their radius (m):
+/// negative when a triangle cuts into the tool.
+fn clearance(world: &World) -> f64 {
+    let tool = &world.tools[0];
+    let s = &world.bodies[0].surface;
+    let mut least = f64::INFINITY;
+    for part in &tool.parts_end[..tool.part_count] {
+        for tri in &s.triangles {
+            let [a, b, c] = tri.map(|v| s.position_in_world[v as usize]);
+            let d = palpa::collision::tool::segment_triangle_distance(&part.a, &part.b, &a, &b, &c);
+            least = least.min(d - part.radius);
+        }
+    }
+    least
+}
+
+/// Σ over the nodes of the links' force on them (N): at rest, with no gravity and springs that
+/// cancel in pairs, what holds the body against the tool.
+fn link_force_sum(world: &World) -> Vec3 {
+    let s = &world.bodies[0].surface;
+    (0..s.position_in_world.len()).fold(Vec3::zeros(), |sum, i| {
+        sum + (s.homologue_in_world[i] - s.position_in_world[i]) * s.link_stiffness[i]
+    })
+}
+
+#[test]
+fn a_tool_finer_than_the_mesh_presses_the_triangles_between_the_nodes() {
+    for (name, shape, along, press) in [
+        (
+            "probe r 2 mm",
+            "{ sphere = { radius = 0.002 } }",
+            Vec3::zeros(),
+            0.006,
+        ),
+        (
+            "shaft r 1.5 mm laid across",
+            "{ capsule = { radius = 0.0015, length = 0.04 } }",
+            Vec3::new(0.02, 0.0, 0.0),
+            0.005,
+        ),
+    ] {
+        for face_contact in [false, true] {
+            let (mut world, top) = pressed_ball(face_contact, shape, along, press);
+            let mut least: f64 = f64::INFINITY;
+            let mut first_contact = None;
+            let mut inside_ticks = 0;
+            for tick in 0..2500 {
+                world.step();
+                let tool = &world.tools[0];
+                if tool.feedback.contacts > 0 && first_contact.is_none() {
+                    first_contact = Some(tick);
+                }
+                if tick > 100 {
+                    least = least.min(clearance(&world));
+                }
+                let b = &world.bodies[0];
+                let w = common::winding_number(
+                    &tool.pose.position_in_world,
+                    &b.surface.position_in_world,
+                    &b.surface.triangles,
+                );
+                inside_ticks += usize::from(w.abs() > 0.5);
+            }
+            let tool = &world.tools[0];
+            let feedback = tool.feedback.force_in_world;
+            let links = link_force_sum(&world);
+            let below = top.z - tool.pose.position_in_world.z;
+            println!(
+                "{name}, face contact {face_contact}: tip {below:.4} m below the triangle's middle, \
+                 first contact at tick {first_contact:?}, least clearance {least:.3e} m, tip inside \
+                 the surface on {inside_ticks} ticks; at 2.5 s feedback [{:.5} {:.5} {:.5}] N \
+                 ({} contacts, {} faces), Σ link forces [{:.5} {:.5} {:.5}] N",
+                feedback.x,
+                feedback.y,
+                feedback.z,
+                tool.feedback.contacts,
+                tool.feedback.faces,
+                links.x,
+                links.y,
+                links.z
+            );
+            if !face_contact {
+                // The control: the tool goes between the nodes into the body, feeling nothing.
+                assert_eq!(feedback, Vec3::zeros(), "{name}: nothing stops the tool");
+                assert!(
+                    least < -0.5 * 0.0015,
+                    "{name}: the surface passes through the tool"
+                );
+                continue;
+            }
+            assert!(first_contact.is_some(), "{name}: the tool met the surface");
+            assert_eq!(
+                inside_ticks, 0,
+                "{name}: the tool's tip stays outside the body"
+            );
+            // The projection is linear along the contact's direction and the triangle turns
+            // under it: what is left is of the order of 0.1 µm (printed), against a tool of 1.5
+            // to 2 mm and the millimetres it went into the body without the faces.
+            assert!(
+                least > -1e-6,
+                "{name}: a triangle cut {least:.3e} m into the tool"
+            );
+            assert!(
+                tool.feedback.faces > 0,
+                "{name}: the faces carry the contact"
+            );
+            // At rest the tool holds the body against its links: the feedback is their sum.
+            assert!(
+                feedback.z > 0.05,
+                "{name}: the body pushes the tool back up"
+            );
+            let error = (feedback - links).norm() / links.norm();
+            assert!(
+                error < 1e-3,
+                "{name}: the feedback is the force of the tissue ({error:.2e} relative)"
+            );
+        }
+    }
+}
+
+/// The default organ's parameters (642 nodes, edges about 8 mm) on the table, a probe of 1.5 mm
+/// radius pressed 8 mm into its top between the nodes and stroked 2 cm sideways in a second,
+/// then lifted; returns, per tick, the feedback force and contact count and whether the probe's
+/// centre was inside the organ.
+fn thin_probe_stroke(face_contact: bool) -> Vec<(Vec3, u32, bool)> {
+    let text = format!(
+        r#"
+[world]
+face_contact = {face_contact}
+
+[[body]]
+name = "organ"
+mesh = {{ ellipsoid = {{ radii = [0.08, 0.05, 0.04], subdivisions = 3 }} }}
+position = [0.0, 0.0, 0.041]
+surface_mass = 0.3
+rigid_mass = 1.2
+surface_stiffness = 40.0
+surface_damping = 0.01
+link_stiffness = 15.0
+link_damping = 0.04
+friction = 0.3
+
+[[obstacle]]
+name = "table"
+plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+friction = 0.4
+static_friction = 0.6
+
+[[tool]]
+name = "probe"
+shape = {{ sphere = {{ radius = 0.0015 }} }}
+script = [
+  {{ t = 0.0, position = [0.0013, 0.0021, 0.10] }},
+  {{ t = 0.8, position = [0.0013, 0.0021, 0.0835] }},
+  {{ t = 1.5, position = [0.0013, 0.0021, 0.055] }},
+  {{ t = 2.5, position = [0.0213, 0.0021, 0.055] }},
+  {{ t = 3.0, position = [0.0213, 0.0021, 0.10] }},
+]
+"#
+    );
+    let mut world = World::from_scene(&common::scene(&text));
+    (0..3000)
+        .map(|_| {
+            world.step();
+            let tool = &world.tools[0];
+            let s = &world.bodies[0].surface;
+            let inside = common::winding_number(
+                &tool.pose.position_in_world,
+                &s.position_in_world,
+                &s.triangles,
+            )
+            .abs()
+                > 0.5;
+            (tool.feedback.force_in_world, tool.feedback.contacts, inside)
+        })
+        .collect()
+}
+
+/// The probe stays on the surface through the press and the stroke, and what the device feels
+/// changes smoothly: without the faces it sinks between the nodes into the organ.
+#[test]
+fn a_fine_probe_stroked_over_a_coarse_organ_stays_on_its_surface() {
+    let control = thin_probe_stroke(false);
+    let inside_without = control.iter().filter(|t| t.2).count();
+    let ticks = thin_probe_stroke(true);
+    let first = ticks
+        .iter()
+        .position(|t| t.1 > 0)
+        .expect("the probe met the organ");
+    // From the first contact to the end of the stroke (tick 2 500), then the lift.
+    let pressed = &ticks[first..2500];
+    let without_contact = pressed.iter().filter(|t| t.1 == 0).count();
+    let inside = ticks.iter().filter(|t| t.2).count();
+    let mut jumps: Vec<f64> = pressed
+        .windows(2)
+        .map(|w| (w[1].0 - w[0].0).norm())
+        .collect();
+    jumps.sort_by(f64::total_cmp);
+    let (p99, largest) = (jumps[jumps.len() * 99 / 100], jumps[jumps.len() - 1]);
+    let strongest = pressed.iter().map(|t| t.0.norm()).fold(0.0, f64::max);
+    let at_stroke_end = ticks[2499].0;
+    println!(
+        "without the faces: the probe's centre inside the organ on {inside_without} ticks of \
+         3 000; with them: first contact at tick {first}, {without_contact} ticks without contact \
+         from it to the stroke's end, inside on {inside} ticks; feedback up to {strongest:.3} N, \
+         [{:.3} {:.3} {:.3}] N at the stroke's end; change from tick to tick p99 {p99:.4} N, \
+         largest {largest:.4} N",
+        at_stroke_end.x, at_stroke_end.y, at_stroke_end.z
+    );
+    assert!(
+        inside_without > 500,
+        "the control: without the faces the probe sinks into the organ"
+    );
+    assert_eq!(inside, 0, "the probe's centre went inside the organ");
+    assert_eq!(without_contact, 0, "the probe lost the surface");
+    assert!(
+        at_stroke_end.z > 0.2,
+        "pressed 8 mm, the organ pushes the probe up"
+    );
+    // A haptic device renders what it is sent at 1 kHz: no step of more than a tenth of the force.
+    assert!(p99 < 0.03, "feedback jitter: p99 {p99} N a tick");
+    assert!(largest < 0.15, "feedback jump: {largest} N in a tick");
+}
+
+/// What the device feels is the impulse the tissue got: a free ball (no gravity, no table) pushed
+/// by a fine probe on a face, with no node held, changes its momentum (surface and rigid component)
+/// by minus the feedback's impulse, tick by tick.
+#[test]
+fn the_momentum_a_pushed_body_gets_is_the_impulse_the_tool_feels() {
+    let text = r#"
+[world]
+gravity = [0.0, 0.0, 0.0]
+
+[[body]]
+name = "ball"
+mesh = { icosphere = { radius = 0.05, subdivisions = 2 } }
+surface_mass = 0.1
+rigid_mass = 0.5
+surface_stiffness = 30.0
+link_stiffness = 20.0
+
+[[tool]]
+name = "probe"
+shape = { sphere = { radius = 0.002 } }
+script = [
+  { t = 0.0, position = [0.0011, 0.0007, 0.058] },
+  { t = 0.4, position = [0.0011, 0.0007, 0.038] },
+]
+"#;
+    let mut world = World::from_scene(&common::scene(text));
+    let momentum = |w: &World| {
+        let b = &w.bodies[0];
+        common::surface_momentum(b) + b.rigid.velocity_in_world * b.rigid.mass
+    };
+    let dt = world.params.dt;
+    let (mut worst, mut impulse, mut faces_only) = (0.0f64, Vec3::zeros(), true);
+    for _ in 0..400 {
+        let before = momentum(&world);
+        world.step();
+        let fb = world.tools[0].feedback;
+        faces_only &= fb.contacts == fb.faces;
+        let given = fb.force_in_world * dt;
+        impulse += given;
+        worst = worst.max((momentum(&world) - before + given).norm());
+    }
+    let total = momentum(&world);
+    println!(
+        "impulse felt {:.4e} N·s, momentum gained [{:.4e} {:.4e} {:.4e}] N·s; worst tick's \
+         mismatch {worst:.2e} N·s",
+        impulse.norm(),
+        total.x,
+        total.y,
+        total.z
+    );
+    assert!(
+        faces_only,
+        "a node was held: the test is of the faces alone"
+    );
+    assert!(impulse.norm() > 1e-3, "the probe pushed the ball");
+    assert!(
+        worst < 1e-12 * impulse.norm().max(1.0),
+        "momentum and feedback disagree by {worst:e} N·s in a tick"
+    );
+}
