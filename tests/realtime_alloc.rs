@@ -373,3 +373,52 @@ fn self_contact_allocates_nothing_on_the_tick() {
         assert_eq!(count, 0, "{name}: {count} allocations with self-contact");
     }
 }
+
+#[test]
+fn faces_pressed_between_the_nodes_allocate_nothing_on_the_tick() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    // A 1.5 mm probe pressed between the nodes of the default organ and stroked 2 cm: the
+    // triangles carry the contact (`palpa::contact::tool_faces`).
+    let scene = common::scene(
+        r#"
+[[body]]
+name = "organ"
+mesh = { ellipsoid = { radii = [0.08, 0.05, 0.04], subdivisions = 3 } }
+position = [0.0, 0.0, 0.041]
+surface_mass = 0.3
+rigid_mass = 1.2
+surface_stiffness = 40.0
+link_stiffness = 15.0
+friction = 0.3
+
+[[obstacle]]
+name = "table"
+plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
+
+[[tool]]
+name = "probe"
+shape = { sphere = { radius = 0.0015 } }
+script = [
+  { t = 0.0, position = [0.0013, 0.0021, 0.10] },
+  { t = 0.8, position = [0.0013, 0.0021, 0.0835] },
+  { t = 1.5, position = [0.0013, 0.0021, 0.055] },
+  { t = 2.5, position = [0.0213, 0.0021, 0.055] },
+]
+"#,
+    );
+    let mut world = World::from_scene(&scene);
+    for _ in 0..10 {
+        world.step();
+    }
+    ALLOCATIONS.store(0, Ordering::SeqCst);
+    set_counting(true);
+    let mut faces = 0u64;
+    for _ in 10..2500 {
+        world.step();
+        faces += u64::from(world.counters.tool_face_contacts);
+    }
+    set_counting(false);
+    let count = ALLOCATIONS.load(Ordering::SeqCst);
+    assert!(faces > 1000, "the faces carried the contact: {faces}");
+    assert_eq!(count, 0, "{count} allocations in 2 490 steps");
+}

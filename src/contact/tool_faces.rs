@@ -278,14 +278,14 @@ impl ToolFaces {
     }
 }
 
-/// The box a tool's capsules fill at the end of the tick.
+/// The box a tool's capsules fill at the end of the tick, with the speculative gap ([`MARGIN`]).
 fn reach_of(tool: &Tool) -> Aabb {
     let mut reach = Aabb::empty();
     let mut margin: f64 = 0.0;
     for part in &tool.parts_end[..tool.part_count] {
         reach.include(&part.a);
         reach.include(&part.b);
-        margin = margin.max(part.radius);
+        margin = margin.max(part.radius * (1.0 + MARGIN));
     }
     reach.inflate(margin);
     reach
