@@ -345,16 +345,7 @@ fn closest_pair(part: &CapsulePart, a: &Vec3, b: &Vec3, c: &Vec3) -> (Vec3, Vec3
 
 /// Barycentric weights of `p` (a point of the triangle), each at least 0, summing to 1.
 fn weights(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
-    let (v0, v1, v2) = (b - a, c - a, p - a);
-    let (d00, d01, d11) = (v0.dot(&v0), v0.dot(&v1), v1.dot(&v1));
-    let (d20, d21) = (v2.dot(&v0), v2.dot(&v1));
-    let denominator = d00 * d11 - d01 * d01;
-    if denominator.abs() <= f64::MIN_POSITIVE {
-        return None;
-    }
-    let v = (d11 * d20 - d01 * d21) / denominator;
-    let w = (d00 * d21 - d01 * d20) / denominator;
-    let w = [1.0 - v - w, v, w].map(|x| x.max(0.0));
+    let w = crate::topology::refine::barycentric(p, a, b, c)?;
     let sum = w[0] + w[1] + w[2];
     (sum > 0.0).then(|| w.map(|x| x / sum))
 }

@@ -554,7 +554,7 @@ pub fn min_angle_deg(tri: &[Vec3; 3]) -> f64 {
 }
 
 /// Barycentric weights of `p` in triangle (a, b, c), or `None` for a degenerate triangle.
-fn barycentric(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
+pub(crate) fn barycentric(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
     let (v0, v1, v2) = (b - a, c - a, p - a);
     let (d00, d01, d11) = (v0.dot(&v0), v0.dot(&v1), v1.dot(&v1));
     let (d20, d21) = (v2.dot(&v0), v2.dot(&v1));
