@@ -1374,6 +1374,7 @@ impl World {
             let faces = press_faces(
                 &mut body.surface,
                 body.topology_version,
+                body.params.plasticity.is_some(),
                 &mut self.tools,
                 cutting_blades,
                 dt,

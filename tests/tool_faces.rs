@@ -354,3 +354,63 @@ script = [
         "momentum and feedback disagree by {worst:e} N·s in a tick"
     );
 }
+
+/// A tick of [`probe_press`]: the feedback force's bits, the contacts, the face candidates.
+type PressTick = ([u64; 3], u32, u32);
+
+/// `scenes/probe_press.toml` with `face_contact` set: per tick, the feedback force's bits, the
+/// contacts, and the face broad phase's candidates; and the end positions' bits.
+fn probe_press(face_contact: bool) -> (Vec<PressTick>, Vec<[u64; 3]>) {
+    let text = std::fs::read_to_string(common::repo_root().join("scenes/probe_press.toml"))
+        .expect("scenes/probe_press.toml");
+    assert!(text.contains("dt = 0.001\n"));
+    let text = text.replacen(
+        "dt = 0.001\n",
+        &format!("dt = 0.001\nface_contact = {face_contact}\n"),
+        1,
+    );
+    let mut world = World::from_scene(&common::scene(&text));
+    let ticks = (0..3500)
+        .map(|_| {
+            world.step();
+            let f = &world.tools[0].feedback;
+            (
+                f.force_in_world.map(f64::to_bits).into(),
+                f.contacts,
+                world.counters.tool_face_candidates,
+            )
+        })
+        .collect();
+    let ends = world.bodies[0]
+        .surface
+        .position_in_world
+        .iter()
+        .map(|p| p.map(f64::to_bits).into())
+        .collect();
+    (ticks, ends)
+}
+
+/// A tool coarser than every triangle of a body (the shipped 8 mm probe on a 642-node organ) is
+/// the paper's contact zone's alone: with `face_contact` on, the stage skips it before its broad
+/// phase (no candidate on any tick), and the run is the same bits as with it off.
+#[test]
+fn a_tool_coarser_than_every_triangle_costs_the_face_stage_nothing() {
+    let (off, off_ends) = probe_press(false);
+    let (on, on_ends) = probe_press(true);
+    let touching = on.iter().filter(|t| t.1 > 0).count();
+    let candidates: u32 = on.iter().map(|t| t.2).sum();
+    println!("probe_press: {touching} ticks in contact, {candidates} face candidates");
+    assert!(
+        touching > 1000,
+        "the probe presses the organ ({touching} ticks)"
+    );
+    assert_eq!(
+        candidates, 0,
+        "a coarse tool is skipped before the broad phase"
+    );
+    assert!(
+        off.iter().zip(&on).all(|(a, b)| a.0 == b.0 && a.1 == b.1),
+        "feedback differs with the faces on"
+    );
+    assert_eq!(off_ends, on_ends, "positions differ with the faces on");
+}

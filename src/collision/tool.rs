@@ -8,7 +8,7 @@
 //! iterations — then it reports a contact at the time reached, so it never misses one.
 
 use crate::Vec3;
-use crate::tool::CapsulePart;
+use crate::tool::{CapsulePart, Tool};
 
 /// Iteration cap of the advancement; reaching it reports a (possibly false) contact.
 const MAX_ITERATIONS: u32 = 128;
@@ -304,6 +304,20 @@ impl Aabb {
             && lo.z <= self.max.z
             && hi.z >= self.min.z
     }
+}
+
+/// The box a tool's parts fill at the end of the tick, each part's axis grown by its radius times
+/// `1 + grow` (`grow` = 0: the parts themselves; a speculative contact's margin otherwise).
+pub fn tool_reach(tool: &Tool, grow: f64) -> Aabb {
+    let mut reach = Aabb::empty();
+    let mut margin: f64 = 0.0;
+    for part in &tool.parts_end[..tool.part_count] {
+        reach.include(&part.a);
+        reach.include(&part.b);
+        margin = margin.max(part.radius * (1.0 + grow));
+    }
+    reach.inflate(margin);
+    reach
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ use crate::body::changes::TopologyChanges;
 pub use crate::body::{JawHold, NO_TOOL, ToolContact};
 use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
 use crate::collision::tool::{
-    Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule,
+    Aabb, lerp_capsule, time_of_impact_capsule_triangle, time_of_impact_point_capsule, tool_reach,
 };
 use crate::tool::{Tool, ToolPose};
 
@@ -610,14 +610,7 @@ pub fn push_out_of_tools(
         if index < 64 && skip & (1 << index) != 0 {
             continue;
         }
-        let mut reach = Aabb::empty();
-        let mut margin: f64 = 0.0;
-        for part in &tool.parts_end[..tool.part_count] {
-            reach.include(&part.a);
-            reach.include(&part.b);
-            margin = margin.max(part.radius);
-        }
-        reach.inflate(margin);
+        let reach = tool_reach(tool, 0.0);
         for k in 0..n.div_ceil(BLOCK) {
             if let Some(b) = blocks.as_ref().and_then(|b| b.bounds(n))
                 && !b[k].bounds.overlaps(&reach)

@@ -40,7 +40,7 @@
 use crate::body::Surface;
 use crate::collision::blocks::{BLOCK, NodeBlock, NodeBlocks};
 use crate::collision::tool::{
-    Aabb, closest_point_on_triangle, segment_segment_closest, segment_triangle_distance,
+    Aabb, closest_point_on_triangle, segment_segment_closest, segment_triangle_distance, tool_reach,
 };
 use crate::contact::tool::NO_TOOL;
 use crate::tool::{CapsulePart, Tool, ToolShape};
@@ -137,6 +137,9 @@ pub struct ToolFaces {
     marked: Room<u32>,
     /// Scratch of the broad phase: each node block's sides against the tool's reach.
     sides: Room<u8>,
+    /// The largest [`rest_circumradius`] of the body's triangles when the chunks were built: a
+    /// tool with no part finer than [`FINE`] of it meets no face (infinite for a degenerate one).
+    largest_circumradius: f64,
 }
 
 impl ToolFaces {
@@ -150,6 +153,7 @@ impl ToolFaces {
             pressed_by: vec![0; nodes],
             marked: Room::with_capacity(3 * MAX_FACE_CONTACTS),
             sides: Room::with_capacity(nodes.div_ceil(BLOCK)),
+            largest_circumradius: f64::INFINITY,
         }
     }
 
@@ -188,6 +192,17 @@ impl ToolFaces {
         if self.built == Some(key) {
             return;
         }
+        self.largest_circumradius = surface
+            .triangles
+            .iter()
+            .map(|&corners| rest_circumradius(surface, corners))
+            .fold(0.0, |largest: f64, r| {
+                if r.is_nan() {
+                    f64::INFINITY
+                } else {
+                    largest.max(r)
+                }
+            });
         self.chunks.clear();
         let triangles = &surface.triangles;
         if triangles.len().div_ceil(CHUNK) > self.chunks.capacity() {
@@ -276,19 +291,6 @@ impl ToolFaces {
             among(k * CHUNK..((k + 1) * CHUNK).min(n));
         }
     }
-}
-
-/// The box a tool's capsules fill at the end of the tick, with the speculative gap ([`MARGIN`]).
-fn reach_of(tool: &Tool) -> Aabb {
-    let mut reach = Aabb::empty();
-    let mut margin: f64 = 0.0;
-    for part in &tool.parts_end[..tool.part_count] {
-        reach.include(&part.a);
-        reach.include(&part.b);
-        margin = margin.max(part.radius * (1.0 + MARGIN));
-    }
-    reach.inflate(margin);
-    reach
 }
 
 /// The radius of the circle through a triangle's corners at rest (their homologues; m): a ball of
@@ -395,10 +397,14 @@ fn cut_into(
 /// module's documentation). Tools whose bit is set in `skip` (bit k for tool k) are left out
 /// (blades cutting the body). `blocks` are the node pass's (their boxes
 /// hold every trajectory, or the call looks at every triangle); the nodes moved join them.
+/// `rest_flows`: the body's rest shape changes without a new `version` (plasticity), so the
+/// triangles' sizes at rest are not known from the last topology change and no tool is skipped
+/// for being coarser than all of them.
 #[allow(clippy::too_many_arguments)]
 pub fn press_faces(
     surface: &mut Surface,
     version: u64,
+    rest_flows: bool,
     tools: &mut [Tool],
     skip: u64,
     dt: f64,
@@ -419,7 +425,15 @@ pub fn press_faces(
         // A grasper's jaws take what they close on (nodes held between them); its shaft meets
         // the faces like any tool.
         let grasper = matches!(tool.shape, ToolShape::Grasper { .. });
-        let reach = reach_of(tool);
+        // A tool coarser than every triangle of the body (the paper's contact zone answers it)
+        // costs no broad phase.
+        let finest = (usize::from(grasper) * 2..tool.part_count)
+            .map(|k| tool.parts_end[k].radius)
+            .fold(f64::INFINITY, f64::min);
+        if !rest_flows && finest * FINE >= scratch.largest_circumradius {
+            continue;
+        }
+        let reach = tool_reach(tool, MARGIN);
         let bounds = blocks.as_ref().and_then(|b| b.bounds(n));
         scratch.broad_phase(surface, &reach, bounds);
         counts.candidates += scratch.candidates.len() as u32;

@@ -17,7 +17,7 @@ use super::{
 };
 use crate::Vec3;
 use crate::body::Body;
-use crate::collision::tool::{Aabb, closest_point_on_triangle, segment_triangle_distance};
+use crate::collision::tool::{closest_point_on_triangle, segment_triangle_distance, tool_reach};
 use crate::contact::tool::{JawHold, NO_TOOL, ToolContact};
 use crate::tool::Tool;
 
@@ -349,14 +349,7 @@ impl Refinement {
     /// The refinable triangle whose surface cuts deepest into the tool (beyond the tolerance), and
     /// the tool part it cuts.
     fn deepest_cut(&self, body: &Body, tool: &Tool, tool_index: u32) -> Option<(usize, usize)> {
-        let mut reach = Aabb::empty();
-        let mut margin: f64 = 0.0;
-        for part in &tool.parts_end[..tool.part_count] {
-            reach.include(&part.a);
-            reach.include(&part.b);
-            margin = margin.max(part.radius);
-        }
-        reach.inflate(margin);
+        let reach = tool_reach(tool, 0.0);
         let s = &body.surface;
         let x = &s.next_position_in_world;
         let mut deepest: Option<(f64, usize, usize)> = None;
