@@ -1375,6 +1375,7 @@ impl World {
                 &mut body.surface,
                 body.topology_version,
                 body.params.plasticity.is_some(),
+                body.params.friction,
                 &mut self.tools,
                 cutting_blades,
                 dt,

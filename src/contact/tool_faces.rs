@@ -15,12 +15,15 @@
 //!   tool is not thrown out of it;
 //! - the velocities: the point's approach to the tool along the direction (less the gap it may
 //!   close in the tick) is taken from the corners' velocities the same way (an inelastic contact);
-//! - the tool feels the opposite of that impulse, `−μ Σ_k w_k n / Δt`, at the contact point.
+//! - friction: the point's slip on the tool (across the direction) is taken from the corners'
+//!   velocities the same way, the friction impulse kept within the Coulomb cone of the normal one
+//!   (the body's `friction` against tools, as its held nodes);
+//! - the tool feels the opposite of those impulses, `−(J_n n + J_t) Σ_k w_k / Δt`, at the contact
+//!   point.
 //!
 //! Triangles that share corners are answered together in a few Gauss–Seidel sweeps in triangle
 //! order (deterministic). At rest against a still tool the force fed back is the deformation force
-//! that pushes the triangles onto it, as for a held node. The contact is frictionless (the nodes the
-//! tool holds carry the Coulomb friction).
+//! that pushes the triangles onto it, as for a held node.
 //!
 //! Held nodes and faces: a cut with most of the contact point's weight on corners the tool holds is
 //! theirs to answer. A node whose triangles a tool pressed in the last tick is not captured by that
@@ -105,8 +108,14 @@ struct Hit {
     effective_inverse_mass: f64,
     /// Velocity of the tool's point at the contact over the tick (m/s).
     tool_velocity: Vec3,
-    /// Σ of the velocity multipliers applied (kg·m/s per unit weight: the impulse).
+    /// Σ of the velocity multipliers applied along `direction` (kg·m/s per unit weight: the
+    /// normal impulse).
     applied: f64,
+    /// Σ of the tangential (friction) impulses applied, per unit weight (kg·m/s), kept within
+    /// the Coulomb cone `friction × applied`.
+    tangential: Vec3,
+    /// The friction reached the cone's edge in the last sweep: the triangle slides on the tool.
+    sliding: bool,
 }
 
 /// What the face contacts did in a tick (one body, every tool).
@@ -399,12 +408,13 @@ fn cut_into(
 /// hold every trajectory, or the call looks at every triangle); the nodes moved join them.
 /// `rest_flows`: the body's rest shape changes without a new `version` (plasticity), so the
 /// triangles' sizes at rest are not known from the last topology change and no tool is skipped
-/// for being coarser than all of them.
+/// for being coarser than all of them. `friction`: the body's Coulomb coefficient against tools.
 #[allow(clippy::too_many_arguments)]
 pub fn press_faces(
     surface: &mut Surface,
     version: u64,
     rest_flows: bool,
+    friction: f64,
     tools: &mut [Tool],
     skip: u64,
     dt: f64,
@@ -499,6 +509,8 @@ pub fn press_faces(
                 effective_inverse_mass,
                 tool_velocity: tool.point_velocity(&on_tool, dt),
                 applied: 0.0,
+                tangential: Vec3::zeros(),
+                sliding: false,
             });
         }
         if scratch.hits.is_empty() {
@@ -544,16 +556,37 @@ pub fn press_faces(
                     q + x[hit.corners[k] as usize] * hit.w[k]
                 });
                 let gap = (hit.direction.dot(&(q - hit.axis_point)) - hit.clearance).max(0.0);
-                let approach = -hit.direction.dot(&(at - hit.tool_velocity)) - gap / dt;
-                if approach <= 0.0 {
+                let relative = at - hit.tool_velocity;
+                let approach = -hit.direction.dot(&relative) - gap / dt;
+                let mut impulse = Vec3::zeros();
+                if approach > 0.0 {
+                    let mu = approach / hit.effective_inverse_mass;
+                    impulse += hit.direction * mu;
+                    hit.applied += mu;
+                }
+                // Coulomb friction: the impulse that would stop the point's slip on the tool,
+                // added to what this contact gave before, kept within the cone of its normal
+                // impulse (the slip is across `direction`, which the normal impulse leaves).
+                if friction > 0.0 && hit.applied > 0.0 {
+                    let slip = relative - hit.direction * hit.direction.dot(&relative);
+                    let wanted = hit.tangential - slip / hit.effective_inverse_mass;
+                    let cone = friction * hit.applied;
+                    let size = wanted.norm();
+                    hit.sliding = size > cone;
+                    let kept = if hit.sliding {
+                        wanted * (cone / size)
+                    } else {
+                        wanted
+                    };
+                    impulse += kept - hit.tangential;
+                    hit.tangential = kept;
+                }
+                if impulse == Vec3::zeros() {
                     continue;
                 }
-                let mu = approach / hit.effective_inverse_mass;
                 for k in 0..3 {
-                    v[hit.corners[k] as usize] +=
-                        hit.direction * (mu * hit.w[k] * hit.inverse_mass[k]);
+                    v[hit.corners[k] as usize] += impulse * (hit.w[k] * hit.inverse_mass[k]);
                 }
-                hit.applied += mu;
                 changed = true;
             }
             if !changed {
@@ -566,12 +599,14 @@ pub fn press_faces(
             if hit.applied <= 0.0 {
                 continue;
             }
-            // Σ m_k Δv_k = μ Σ_k w_k (over the corners it moves).
+            // Σ m_k Δv_k = J Σ_k w_k (over the corners it moves), J the impulse per unit weight.
             let moved_weight: f64 = (0..3)
                 .filter(|&k| hit.inverse_mass[k] > 0.0)
                 .map(|k| hit.w[k])
                 .sum();
-            let force = hit.direction * (-hit.applied * moved_weight / dt);
+            let normal = hit.direction * (-hit.applied * moved_weight / dt);
+            let tangential = hit.tangential * (-moved_weight / dt);
+            let force = normal + tangential;
             let at = (0..3).fold(Vec3::zeros(), |q, k| {
                 q + x[hit.corners[k] as usize] * hit.w[k]
             });
@@ -580,7 +615,9 @@ pub fn press_faces(
             fb.torque_in_world += (at - tool.pose.position_in_world).cross(&force);
             fb.contacts += 1;
             fb.faces += 1;
-            fb.normal_force += force.norm();
+            fb.normal_force += normal.norm();
+            fb.friction_force += tangential.norm();
+            fb.sliding += u32::from(hit.sliding);
             counts.contacts += 1;
         }
         for hit in &scratch.hits {
