@@ -146,6 +146,13 @@ pub struct ToolFaces {
     marked: Room<u32>,
     /// Scratch of the broad phase: each node block's sides against the tool's reach.
     sides: Room<u8>,
+    /// Scratch of the broad phase, per node: sides of the tool's reach its end position lies
+    /// beyond (see `ToolFaces::fill_codes`); valid for the blocks stamped with `generation`.
+    codes: Vec<u8>,
+    /// Per node block: the broad phase call whose codes its nodes hold.
+    stamps: Vec<u64>,
+    /// Broad phase calls so far.
+    generation: u64,
     /// The largest [`rest_circumradius`] of the body's triangles when the chunks were built: a
     /// tool with no part finer than [`FINE`] of it meets no face (infinite for a degenerate one).
     largest_circumradius: f64,
@@ -162,6 +169,9 @@ impl ToolFaces {
             pressed_by: vec![0; nodes],
             marked: Room::with_capacity(3 * MAX_FACE_CONTACTS),
             sides: Room::with_capacity(nodes.div_ceil(BLOCK)),
+            codes: vec![0; nodes],
+            stamps: vec![0; nodes.div_ceil(BLOCK)],
+            generation: 0,
             largest_circumradius: f64::INFINITY,
         }
     }
@@ -285,20 +295,83 @@ impl ToolFaces {
             }
             bits
         }));
+        self.generation += 1;
+        let coded = x.len() <= self.codes.len() && blocks.len() <= self.stamps.len();
         for (k, chunk) in self.chunks.iter().enumerate() {
+            let range = k * CHUNK..((k + 1) * CHUNK).min(n);
+            if chunk.count == u8::MAX {
+                among(range);
+                continue;
+            }
             // The union of the blocks' boxes holds every corner's trajectory, so every triangle's
             // end position: a chunk whose union misses the reach holds no candidate.
-            if chunk.count != u8::MAX {
-                let mut bits = 0u8;
-                for &block in &chunk.blocks[..chunk.count as usize] {
-                    bits |= self.sides.get(block as usize).copied().unwrap_or(ALL_SIDES);
-                }
-                if bits != ALL_SIDES {
-                    continue;
+            let mut bits = 0u8;
+            for &block in &chunk.blocks[..chunk.count as usize] {
+                bits |= self.sides.get(block as usize).copied().unwrap_or(ALL_SIDES);
+            }
+            if bits != ALL_SIDES {
+                continue;
+            }
+            if !coded {
+                among(range);
+                continue;
+            }
+            for &block in &chunk.blocks[..chunk.count as usize] {
+                fill_codes(
+                    &mut self.codes,
+                    &mut self.stamps,
+                    self.generation,
+                    &self.sides,
+                    block as usize,
+                    x,
+                    reach,
+                );
+            }
+            // A triangle whose three corners lie beyond one side of the reach has a box that
+            // misses it: the box test is made on the others only (the same candidates).
+            let codes = &self.codes[..];
+            for (t, tri) in triangles[range.clone()].iter().enumerate() {
+                let [a, b, c] = tri.map(|v| codes.get(v as usize).copied().unwrap_or(0));
+                if a & b & c == 0 {
+                    among(range.start + t..range.start + t + 1);
                 }
             }
-            among(k * CHUNK..((k + 1) * CHUNK).min(n));
         }
+    }
+}
+
+/// The codes of block `block`'s nodes against `reach`, unless this call (`generation`) filled
+/// them: bit 2k when the end position's coordinate k is above the reach, 2k + 1 when below. A block
+/// whose box meets the reach (its `sides` all six) gets each node's own code; one whose box misses
+/// it gets, for each node, the sides its box lies beyond (every node lies beyond them too: a code
+/// with fewer bits than the node's own, which only keeps more triangles for the exact test).
+fn fill_codes(
+    codes: &mut [u8],
+    stamps: &mut [u64],
+    generation: u64,
+    sides: &[u8],
+    block: usize,
+    x: &[Vec3],
+    reach: &Aabb,
+) {
+    if stamps[block] == generation {
+        return;
+    }
+    stamps[block] = generation;
+    let nodes = block * BLOCK..((block + 1) * BLOCK).min(x.len());
+    let side = sides.get(block).copied().unwrap_or(ALL_SIDES);
+    if side != ALL_SIDES {
+        codes[nodes].fill(!side & ALL_SIDES);
+        return;
+    }
+    for i in nodes {
+        let p = &x[i];
+        let mut code = 0u8;
+        for k in 0..3 {
+            code |= u8::from(p[k] > reach.max[k]) << (2 * k);
+            code |= u8::from(p[k] < reach.min[k]) << (2 * k + 1);
+        }
+        codes[i] = code;
     }
 }
 
