@@ -63,6 +63,10 @@ pub struct Systems {
     pub rigid_motion: bool,
     /// There are tools: continuous detection against them, contact zones, friction, feedback.
     pub tool_contact: bool,
+    /// Tools may meet the triangles between the nodes (`face_contact`) of some body that does not
+    /// refine (`crate::contact::tool_faces`; a tool coarser than all of a body's triangles is
+    /// skipped before it costs anything).
+    pub tool_faces: bool,
     /// Two bodies or more: broad phase and continuous detection between their surfaces.
     pub body_contact: bool,
     /// Some body refines at tool contact.
@@ -92,6 +96,7 @@ impl Systems {
             (self.tool_contact, "tool_contact"),
             (self.tool_contact, "tool_friction"),
             (self.tool_contact, "feedback"),
+            (self.tool_faces, "tool_faces"),
             (self.body_contact, "body_broad_phase"),
             (self.body_contact, "body_ccd"),
             (self.subdivision, "subdivision"),
@@ -652,6 +657,9 @@ impl World {
                 .any(|o| o.friction > 0.0 || o.static_friction > 0.0),
             rigid_motion: self.bodies.iter().any(|b| !b.rigid.fixed),
             tool_contact: !self.tools.is_empty() && !self.bodies.is_empty(),
+            tool_faces: self.params.face_contact
+                && !self.tools.is_empty()
+                && self.bodies.iter().any(|b| b.params.subdivision.is_none()),
             body_contact: body_contact_needed(&self.bodies),
             subdivision: !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_some()),

@@ -42,6 +42,11 @@ fn check_lists_systems_and_the_stability_margin() {
     );
     assert!(t.contains("organ: worst node"), "{t}");
     assert!(t.contains("— stable"), "{t}");
+    // Tool–face contact is listed where a tool may meet the faces of a body that does not refine.
+    let t = text(&palpa(&["check", "scenes/probe_press.toml"]));
+    assert!(t.contains("feedback, tool_faces"), "{t}");
+    let t = text(&palpa(&["check", "scenes/probe_refine.toml"]));
+    assert!(t.contains("feedback") && !t.contains("tool_faces"), "{t}");
     assert!(!t.contains("warning"), "{t}");
     // Obstacles in the scene's words (they were Rust debug structures), and a body that tears is
     // `tearing`, not `cutting` (one stage does both; it was named for cuts).
@@ -52,13 +57,13 @@ fn check_lists_systems_and_the_stability_margin() {
         ),
         "{t}"
     );
-    assert!(t.contains(", feedback, tearing\n"), "{t}");
+    assert!(t.contains(", feedback, tool_faces, tearing\n"), "{t}");
     let t = text(&palpa(&["check", "scenes/transection.toml"]));
     assert!(
         t.contains("obstacle block: box centred at [0, 0, 0.01] m, size [0.03, 0.06, 0.02] m, orientation [1, 0, 0, 0]"),
         "{t}"
     );
-    assert!(t.contains(", feedback, cutting\n"), "{t}");
+    assert!(t.contains(", feedback, tool_faces, cutting\n"), "{t}");
 }
 
 #[test]
