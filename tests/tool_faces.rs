@@ -494,3 +494,88 @@ fn the_faces_drag_a_stroking_probe_within_the_coulomb_cone() {
         );
     }
 }
+
+/// A probe faster than its diameter: a 2 mm probe struck at 6 m/s (6 mm a tick) into the middle
+/// of a triangle of the fixed 162-node ball (its centre 3 mm over the triangle at the end of one
+/// tick, 3 mm under it at the end of the next), then held there. At the end of the tick it
+/// crossed the triangle it is wholly behind it, so the end-of-tick test alone lets it through; the
+/// sweep of its centre over the tick finds the triangle it crossed, which goes in ahead of it.
+#[test]
+fn a_probe_struck_faster_than_its_diameter_does_not_pass_between_the_nodes() {
+    let run = |face_contact: bool| {
+        // Where the topmost triangle's middle is.
+        let (_, top) = pressed_ball(false, "{ sphere = { radius = 0.002 } }", Vec3::zeros(), 0.0);
+        let body = format!(
+            "[world]\ngravity = [0.0, 0.0, 0.0]\nface_contact = {face_contact}\n
+[[body]]
+name = \"ball\"
+mesh = {{ icosphere = {{ radius = 0.05, subdivisions = 2 }} }}
+surface_mass = 0.1
+rigid_mass = 0.5
+surface_stiffness = 30.0
+surface_damping = 0.02
+link_stiffness = 20.0
+link_damping = 0.05
+fixed = true
+
+[[tool]]
+name = \"probe\"
+shape = {{ sphere = {{ radius = 0.002 }} }}
+script = [
+  {{ t = 0.0, position = [{x}, {y}, {}] }},
+  {{ t = 0.1, position = [{x}, {y}, {}] }},
+  {{ t = 0.102, position = [{x}, {y}, {}] }},
+]
+",
+            top.z + 0.009,
+            top.z + 0.009,
+            top.z - 0.003,
+            x = top.x,
+            y = top.y,
+        );
+        let mut world = World::from_scene(&common::scene(&body));
+        let (mut inside, mut least, mut first) = (0, f64::INFINITY, None);
+        for tick in 0..1500 {
+            world.step();
+            let s = &world.bodies[0].surface;
+            let p = world.tools[0].pose.position_in_world;
+            if common::winding_number(&p, &s.position_in_world, &s.triangles).abs() > 0.5 {
+                inside += 1;
+            }
+            if tick > 1000 {
+                least = least.min(clearance(&world));
+            }
+            if first.is_none() && world.tools[0].feedback.contacts > 0 {
+                first = Some(tick);
+            }
+        }
+        let force = world.tools[0].feedback.force_in_world;
+        println!(
+            "probe struck at 6 m/s, faces {face_contact}: centre inside the ball on {inside} of 1 500 \
+             ticks, first contact at tick {first:?}, least clearance after 1 s {least:.3e} m, \
+             feedback at 1.5 s [{:.4} {:.4} {:.4}] N, Σ links [{:.4} {:.4} {:.4}] N",
+            force.x,
+            force.y,
+            force.z,
+            link_force_sum(&world).x,
+            link_force_sum(&world).y,
+            link_force_sum(&world).z
+        );
+        (inside, least, force, link_force_sum(&world))
+    };
+    let (inside_without, _, _, _) = run(false);
+    assert!(
+        inside_without > 1000,
+        "the control: without the faces the probe goes in"
+    );
+    let (inside, least, force, links) = run(true);
+    assert_eq!(inside, 0, "the probe's centre went inside the ball");
+    assert!(
+        least > -1e-6,
+        "the surface {least} m into the probe at rest"
+    );
+    assert!(
+        (force - links).norm() < 1e-3 * links.norm(),
+        "at rest the feedback is the tissue's force"
+    );
+}

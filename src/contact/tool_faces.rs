@@ -18,6 +18,9 @@
 //! - friction: the point's slip on the tool (across the direction) is taken from the corners'
 //!   velocities the same way, the friction impulse kept within the Coulomb cone of the normal one
 //!   (the body's `friction` against tools, as its held nodes);
+//! - a part faster than its diameter: an end of its axis that crossed a triangle over the tick
+//!   (from the outer side, the part wholly behind it at the end) makes the triangle go in along its
+//!   normal, a radius ahead of that end;
 //! - the tool feels the opposite of those impulses, `−(J_n n + J_t) Σ_k w_k / Δt`, at the contact
 //!   point.
 //!
@@ -427,6 +430,32 @@ fn closest_pair(part: &CapsulePart, a: &Vec3, b: &Vec3, c: &Vec3) -> (Vec3, Vec3
     best
 }
 
+/// Where an end of capsule `part`'s axis crossed triangle (a, b, c) (at its end-of-tick place)
+/// from its outer side to its inner side over the tick (`start`: the part at the tick's start):
+/// (the crossing, in the triangle; that end at the end of the tick).
+fn swept_across(
+    part: &CapsulePart,
+    start: &CapsulePart,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+) -> Option<(Vec3, Vec3)> {
+    let normal = (b - a).cross(&(c - a));
+    [(&start.a, &part.a), (&start.b, &part.b)]
+        .into_iter()
+        .find_map(|(from, to)| {
+            let (d0, d1) = ((from - a).dot(&normal), (to - a).dot(&normal));
+            if !(d0 > 0.0 && d1 < 0.0) {
+                return None;
+            }
+            let crossing = from + (to - from) * (d0 / (d0 - d1));
+            let inside = (b - a).cross(&(crossing - a)).dot(&normal) >= 0.0
+                && (c - b).cross(&(crossing - b)).dot(&normal) >= 0.0
+                && (a - c).cross(&(crossing - c)).dot(&normal) >= 0.0;
+            inside.then_some((crossing, *to))
+        })
+}
+
 /// Barycentric weights of `p` (a point of the triangle), each at least 0, summing to 1.
 fn weights(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<[f64; 3]> {
     let w = crate::topology::refine::barycentric(p, a, b, c)?;
@@ -446,9 +475,12 @@ fn cut_into(
     let x = &surface.next_position_in_world;
     let [a, b, c] = corners.map(|v| x[v as usize]);
     let margin = MARGIN * part.radius;
-    if segment_triangle_distance(&part.a, &part.b, &a, &b, &c) >= part.radius + margin {
-        return None;
-    }
+    let far = segment_triangle_distance(&part.a, &part.b, &a, &b, &c) >= part.radius + margin;
+    let swept = if far {
+        Some(swept_across(part, start, &a, &b, &c)?)
+    } else {
+        None
+    };
     // The tool was on the triangle's outer side at the start of the tick (a tool that slipped
     // into the tissue meets the surface from within: it is not pushed back out through it).
     let x0 = &surface.position_in_world;
@@ -459,6 +491,12 @@ fn cut_into(
         return None;
     }
     let outward = (b - a).cross(&(c - a)).try_normalize(f64::MIN_POSITIVE)?;
+    if let Some((crossing, end)) = swept {
+        // Through the triangle within the tick (faster than its diameter): the triangle goes
+        // in along its normal until it is a radius ahead of the end of the axis that crossed it.
+        let depth = part.radius + (crossing - end).dot(&outward);
+        return Some((depth, -outward, end, crossing));
+    }
     // The triangle's point deepest in the capsule: the closest pair of the axis and the triangle
     // (the axis's ends against the triangle, its sides against the axis; where the axis crosses
     // the triangle, that point, at distance 0).
@@ -516,7 +554,13 @@ pub fn press_faces(
         if !rest_flows && finest * FINE >= scratch.largest_circumradius {
             continue;
         }
-        let reach = tool_reach(tool, MARGIN);
+        // The parts' places at the end of the tick, and their axes' ends at its start: a part
+        // faster than its diameter may have passed through a triangle (see `cut_into`).
+        let mut reach = tool_reach(tool, MARGIN);
+        for part in &tool.parts_start[..tool.part_count] {
+            reach.include(&part.a);
+            reach.include(&part.b);
+        }
         let bounds = blocks.as_ref().and_then(|b| b.bounds(n));
         scratch.broad_phase(surface, &reach, bounds);
         counts.candidates += scratch.candidates.len() as u32;
