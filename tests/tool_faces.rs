@@ -10,12 +10,8 @@ mod common;
 use palpa::Vec3;
 use palpa::world::World;
 
-/// A fixed ball (radius 5 cm, 162 nodes: edges about 2 cm) in zero gravity, and a tool aimed at
-/// the middle of its topmost triangle, from 1 cm above the surface down to `press` m below where
-/// the triangle's middle was, in 0.5 s, then held. `along`: the tool's tip is that far from the
-/// middle, its axis (+z of the tool) turned to point along it (a shaft laid across the triangle).
-fn pressed_ball(face_contact: bool, tool_shape: &str, along: Vec3, press: f64) -> (World, Vec3) {
-    let body = r#"
+/// A fixed ball (radius 5 cm, 162 nodes: edges about 2 cm).
+const FIXED_BALL: &str = r#"
 [[body]]
 name = "ball"
 mesh = { icosphere = { radius = 0.05, subdivisions = 2 } }
@@ -28,10 +24,16 @@ link_stiffness = 20.0
 link_damping = 0.05
 fixed = true
 "#;
+
+/// A fixed ball (radius 5 cm, 162 nodes: edges about 2 cm) in zero gravity, and a tool aimed at
+/// the middle of its topmost triangle, from 1 cm above the surface down to `press` m below where
+/// the triangle's middle was, in 0.5 s, then held. `along`: the tool's tip is that far from the
+/// middle, its axis (+z of the tool) turned to point along it (a shaft laid across the triangle).
+fn pressed_ball(face_contact: bool, tool_shape: &str, along: Vec3, press: f64) -> (World, Vec3) {
     let world_section =
         format!("[world]\ngravity = [0.0, 0.0, 0.0]\nface_contact = {face_contact}\n");
     // Where the topmost triangle's middle is.
-    let probe_world = World::from_scene(&common::scene(&format!("{world_section}{body}")));
+    let probe_world = World::from_scene(&common::scene(&format!("{world_section}{FIXED_BALL}")));
     let s = &probe_world.bodies[0].surface;
     let middle = |t: &[u32; 3]| {
         t.iter()
@@ -50,7 +52,7 @@ fixed = true
     let turn = nalgebra::UnitQuaternion::rotation_between(&Vec3::z(), &along)
         .unwrap_or_else(nalgebra::UnitQuaternion::identity);
     let text = format!(
-        "{world_section}{body}
+        "{world_section}{FIXED_BALL}
 [[tool]]
 name = \"tool\"
 shape = {tool_shape}
@@ -506,18 +508,7 @@ fn a_probe_struck_faster_than_its_diameter_does_not_pass_between_the_nodes() {
         // Where the topmost triangle's middle is.
         let (_, top) = pressed_ball(false, "{ sphere = { radius = 0.002 } }", Vec3::zeros(), 0.0);
         let body = format!(
-            "[world]\ngravity = [0.0, 0.0, 0.0]\nface_contact = {face_contact}\n
-[[body]]
-name = \"ball\"
-mesh = {{ icosphere = {{ radius = 0.05, subdivisions = 2 }} }}
-surface_mass = 0.1
-rigid_mass = 0.5
-surface_stiffness = 30.0
-surface_damping = 0.02
-link_stiffness = 20.0
-link_damping = 0.05
-fixed = true
-
+            "[world]\ngravity = [0.0, 0.0, 0.0]\nface_contact = {face_contact}\n{FIXED_BALL}
 [[tool]]
 name = \"probe\"
 shape = {{ sphere = {{ radius = 0.002 }} }}

@@ -406,10 +406,7 @@ fn closest_pair(part: &CapsulePart, a: &Vec3, b: &Vec3, c: &Vec3) -> (Vec3, Vec3
         } else {
             *p
         };
-        if (b - a).cross(&(crossing - a)).dot(&normal) >= 0.0
-            && (c - b).cross(&(crossing - b)).dot(&normal) >= 0.0
-            && (a - c).cross(&(crossing - c)).dot(&normal) >= 0.0
-        {
+        if within(&crossing, a, b, c, &normal) {
             return (crossing, crossing);
         }
     }
@@ -428,6 +425,14 @@ fn closest_pair(part: &CapsulePart, a: &Vec3, b: &Vec3, c: &Vec3) -> (Vec3, Vec3
         consider(p + (r - p) * s, x + (y - x) * t);
     }
     best
+}
+
+/// Whether `p`, a point of triangle (a, b, c)'s plane (`normal` its (b − a) × (c − a)), lies
+/// within the triangle (its sides included).
+fn within(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3, normal: &Vec3) -> bool {
+    (b - a).cross(&(p - a)).dot(normal) >= 0.0
+        && (c - b).cross(&(p - b)).dot(normal) >= 0.0
+        && (a - c).cross(&(p - c)).dot(normal) >= 0.0
 }
 
 /// Where an end of capsule `part`'s axis crossed triangle (a, b, c) (at its end-of-tick place)
@@ -449,10 +454,7 @@ fn swept_across(
                 return None;
             }
             let crossing = from + (to - from) * (d0 / (d0 - d1));
-            let inside = (b - a).cross(&(crossing - a)).dot(&normal) >= 0.0
-                && (c - b).cross(&(crossing - b)).dot(&normal) >= 0.0
-                && (a - c).cross(&(crossing - c)).dot(&normal) >= 0.0;
-            inside.then_some((crossing, *to))
+            within(&crossing, a, b, c, &normal).then_some((crossing, *to))
         })
 }
 
