@@ -144,11 +144,13 @@ fn a_coarse_body_refined_at_the_contact_matches_a_fine_one_within_10_percent() {
         spread < 0.03,
         "the fine reference does not depend on where it is pressed: {spread}"
     );
-    // With nodes only, and no subdivision, the probe slips between the coarse nodes. The 5 mm
-    // probe is not fine enough for the faces to meet it (half of a triangle's circle at rest is
-    // about 4 mm): the same.
+    // With nodes only, and no subdivision, the probe slips between the coarse nodes. The faces
+    // keep the 5 mm probe out (it fits between the corners of the coarse triangles, whose circles
+    // are about 8 mm), as stiff as the coarse mesh is: far stiffer than the fine body. (While the
+    // faces met only tools finer than half of a triangle's circle, the probe slipped through here
+    // too: −100 %.)
     assert!(errors[0].iter().all(|e| *e < -0.95), "{:?}", errors[0]);
-    assert!(errors[1].iter().all(|e| *e < -0.95), "{:?}", errors[1]);
+    assert!(errors[1].iter().all(|e| *e > 0.5), "{:?}", errors[1]);
     // The area rule is within 10 % at every point; the paper's rules are far stiffer.
     assert!(errors[4].iter().all(|e| e.abs() < 0.10), "{:?}", errors[4]);
     let mean_abs = |e: &[f64]| e.iter().map(|x| x.abs()).sum::<f64>() / e.len() as f64;

@@ -570,3 +570,108 @@ script = [
         "at rest the feedback is the tissue's force"
     );
 }
+
+/// A very soft 642-node organ (the laparoscopy uterus's parameters, no `subdivision`) on a table,
+/// a 5 mm probe pressed 5 mm into its top (0.5 to 0.75 s), stroked 2 cm sideways in 0.5 s and
+/// lifted away: per tick, (feedback force, contacts and faces, probe centre inside the surface).
+fn soft_organ_stroke(face_contact: bool) -> Vec<(Vec3, u32, bool)> {
+    let text = format!(
+        r#"
+[world]
+face_contact = {face_contact}
+
+[[body]]
+name = "uterus"
+mesh = {{ ellipsoid = {{ radii = [0.025, 0.037, 0.022], subdivisions = 3 }} }}
+position = [0.0, 0.0, 0.0225]
+surface_mass = 0.06
+rigid_mass = 0.03
+surface_stiffness = 12.0
+surface_damping = 0.02
+link_stiffness = 50.0
+link_damping = 0.05
+friction = 0.3
+
+[[obstacle]]
+name = "table"
+plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+friction = 0.4
+static_friction = 0.6
+
+[[tool]]
+name = "probe"
+shape = {{ sphere = {{ radius = 0.0025 }} }}
+script = [
+  {{ t = 0.0, position = [0.0, -0.01, 0.06] }},
+  {{ t = 0.5, position = [0.0, -0.01, 0.0495] }},
+  {{ t = 0.75, position = [0.0, -0.01, 0.0395] }},
+  {{ t = 1.25, position = [0.0, 0.01, 0.0395] }},
+  {{ t = 1.75, position = [0.0, 0.01, 0.07] }},
+]
+"#
+    );
+    let mut world = World::from_scene(&common::scene(&text));
+    (0..1800)
+        .map(|_| {
+            world.step();
+            let tool = &world.tools[0];
+            let s = &world.bodies[0].surface;
+            let inside = common::winding_number(
+                &tool.pose.position_in_world,
+                &s.position_in_world,
+                &s.triangles,
+            )
+            .abs()
+                > 0.5;
+            let f = &tool.feedback;
+            (f.force_in_world, f.contacts, inside)
+        })
+        .collect()
+}
+
+/// A probe about as wide as a soft organ's triangles, pressed deep and stroked: the triangles
+/// round the one node it holds keep it out (it fits between the corners, its radius below their
+/// circle's). When the faces met only tools finer than half that circle, the organ's surface
+/// closed over it: no contact on 425 of the 615 ticks from the first contact to the end of the
+/// stroke, the probe inside the organ on 584 ticks (as with nodes only), and the organ hanging on
+/// it as it lifted (−0.42 N).
+#[test]
+fn a_probe_pressed_deep_into_a_soft_organ_and_stroked_stays_on_its_surface() {
+    let control = soft_organ_stroke(false);
+    let inside_without = control.iter().filter(|t| t.2).count();
+    let ticks = soft_organ_stroke(true);
+    let first = ticks
+        .iter()
+        .position(|t| t.1 > 0)
+        .expect("the probe met the organ");
+    // From the first contact to the end of the stroke (tick 1 250); then the lift.
+    let pressed = &ticks[first..1250];
+    let without_contact = pressed.iter().filter(|t| t.1 == 0).count();
+    let inside = ticks.iter().filter(|t| t.2).count();
+    let steps: Vec<f64> = pressed
+        .windows(2)
+        .map(|w| (w[1].0 - w[0].0).norm())
+        .collect();
+    let largest_step = steps.iter().copied().fold(0.0, f64::max);
+    let deepest = pressed.iter().map(|t| t.0.z).fold(0.0, f64::max);
+    let lift_pull = ticks[1250..].iter().map(|t| t.0.z).fold(0.0, f64::min);
+    println!(
+        "soft organ, 5 mm probe pressed 5 mm and stroked 2 cm: first contact at tick {first}; \
+         {without_contact} of {} ticks without contact to the end of the stroke; probe inside on \
+         {inside} ticks (without the faces {inside_without}); force up to {deepest:.3} N, largest \
+         change a tick {largest_step:.4} N; on the lift, the most downward force {lift_pull:.2e} N",
+        pressed.len()
+    );
+    assert!(
+        inside_without > 100,
+        "without the faces the probe should go into this organ: {inside_without} ticks"
+    );
+    assert_eq!(without_contact, 0, "the probe lost the organ");
+    assert_eq!(inside, 0, "the probe went into the organ");
+    assert!(deepest > 0.1, "the probe did not press: {deepest} N");
+    // A surface closed over the probe would pull the organ up with it as it lifts.
+    assert!(
+        lift_pull > -1e-3,
+        "the organ hangs on the probe: {lift_pull} N"
+    );
+}

@@ -28,8 +28,12 @@
 //! order (deterministic). At rest against a still tool the force fed back is the deformation force
 //! that pushes the triangles onto it, as for a held node.
 //!
-//! Held nodes and faces: a cut with most of the contact point's weight on corners the tool holds is
-//! theirs to answer. A node whose triangles a tool pressed in the last tick is not captured by that
+//! Held nodes and faces: the corners a tool holds are not moved, and the multiplier of a triangle
+//! with held corners is the one of a triangle whose corners all move (the held ones' share not
+//! given): a cut near a held corner closes over a few ticks, where taking it all from the free
+//! corners' small weights would throw them off the tool (until 2026-12-07 such cuts, three quarters
+//! of their weight or more on held corners, were left to the held nodes; with the threshold of
+//! [`FINE`] at one, the tool sank between them, or the contact flickered). A node whose triangles a tool pressed in the last tick is not captured by that
 //! tool (graspers excepted: their jaws take what they close on): held on the tool's surface, the
 //! triangles beside it would rise through a tool finer than them, and the contact would flicker
 //! between the node and its faces.
@@ -64,10 +68,11 @@ const CHUNK_BLOCKS: usize = 16;
 /// A tool part meets a triangle's face when its radius is less than `1 / FINE` of the radius of
 /// the circle through the triangle's corners at rest: a tool that fine fits between the corners
 /// (one as wide as that circle, or wider, meets a corner before its axis reaches the triangle's
-/// plane). Coarser parts are left to the nodes, as in the paper: the contact of those with the
-/// faces as well changed how organs pressed on one another came to rest (the body-contact tests'
-/// rest within a second, 1.5e-5 and 2.4e-5 J against 1e-5 with a threshold of 1).
-const FINE: f64 = 2.0;
+/// plane). Coarser parts are left to the nodes, as in the paper. Until 2026-12-07 the threshold was
+/// a half, and a part between half and all of the circle sank between the nodes: a 6 mm probe
+/// pressing the bench organ of the body-contact tests held one node while the triangles round it
+/// cut 2.3 mm into it, and a 5 mm probe pressed into a soft 642-node organ went through its surface.
+const FINE: f64 = 1.0;
 
 /// Gap, as a fraction of the tool part's radius, within which a triangle is in contact before it
 /// cuts into the tool (a speculative contact: it may approach by its gap in the tick, no faster),
@@ -79,10 +84,6 @@ const ALL_SIDES: u8 = 0b11_1111;
 
 /// Gauss–Seidel sweeps over the triangles in contact with one tool.
 const SWEEPS: usize = 3;
-
-/// Least share of the contact point's barycentric weight on free corners: a point nearer the held
-/// corners than this is the held nodes' to answer (moving the free corners for it would throw them).
-const MIN_FREE_WEIGHT: f64 = 0.25;
 
 /// Most triangles in contact with one tool of one body in a tick; more are counted and left.
 pub const MAX_FACE_CONTACTS: usize = 256;
@@ -602,19 +603,22 @@ pub fn press_faces(
             let Some(w) = weights(&q, &a, &b, &c) else {
                 continue;
             };
-            let free_weight: f64 = (0..3).filter(|&k| free[k]).map(|k| w[k]).sum();
-            if free_weight < MIN_FREE_WEIGHT {
-                // The cut is at the held corners: theirs to answer.
-                continue;
-            }
             if scratch.hits.len() == scratch.hits.capacity() {
                 counts.dropped += 1;
                 continue;
             }
             let inverse_mass =
                 [0, 1, 2].map(|k| f64::from(free[k]) * surface.inverse_mass[corners[k] as usize]);
-            let effective_inverse_mass: f64 = (0..3).map(|k| w[k] * w[k] * inverse_mass[k]).sum();
-            if effective_inverse_mass <= 0.0 || !effective_inverse_mass.is_finite() {
+            // The multiplier as if the held corners moved too (their share is not given): a point
+            // near a held corner would otherwise take all its correction from the free corners'
+            // small weights, which throws them off the tool (and the contact flickers from tick to
+            // tick); it closes over a few ticks instead, each free corner corrected as it would
+            // be in a triangle whose corners all moved.
+            let effective_inverse_mass: f64 = (0..3)
+                .map(|k| w[k] * w[k] * surface.inverse_mass[corners[k] as usize])
+                .sum();
+            let moved = (0..3).any(|k| inverse_mass[k] * w[k] > 0.0);
+            if !moved || effective_inverse_mass <= 0.0 || !effective_inverse_mass.is_finite() {
                 continue;
             }
             let on_tool = tool.pose.to_tool(&(axis_point + direction * radius));
