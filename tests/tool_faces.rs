@@ -251,8 +251,14 @@ script = [
 ]
 "#
     );
-    let mut world = World::from_scene(&common::scene(&text));
-    (0..3000)
+    stroke_ticks(&text, 3000)
+}
+
+/// `ticks` ticks of the scene `text`, whose first tool strokes its first body: what the tool
+/// feels each tick, and whether its centre is inside the body.
+fn stroke_ticks(text: &str, ticks: usize) -> Vec<StrokeTick> {
+    let mut world = World::from_scene(&common::scene(text));
+    (0..ticks)
         .map(|_| {
             world.step();
             let tool = &world.tools[0];
@@ -610,28 +616,14 @@ script = [
 ]
 "#
     );
-    let mut world = World::from_scene(&common::scene(&text));
-    (0..1800)
-        .map(|_| {
-            world.step();
-            let tool = &world.tools[0];
-            let s = &world.bodies[0].surface;
-            let inside = common::winding_number(
-                &tool.pose.position_in_world,
-                &s.position_in_world,
-                &s.triangles,
-            )
-            .abs()
-                > 0.5;
-            let f = &tool.feedback;
-            (f.force_in_world, f.contacts, inside)
-        })
+    stroke_ticks(&text, 1800)
+        .into_iter()
+        .map(|t| (t.force, t.contacts, t.inside))
         .collect()
 }
 
 /// A probe about as wide as a soft organ's triangles, pressed deep and stroked: the triangles
-/// round the one node it holds keep it out (it fits between the corners, its radius below their
-/// circle's). When the faces met only tools finer than half that circle, the organ's surface
+/// keep it out (it fits between their corners, its radius below their circle's). When the faces met only tools finer than half that circle, the organ's surface
 /// closed over it: no contact on 425 of the 615 ticks from the first contact to the end of the
 /// stroke, the probe inside the organ on 584 ticks (as with nodes only), and the organ hanging on
 /// it as it lifted (−0.42 N).

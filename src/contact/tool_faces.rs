@@ -31,12 +31,13 @@
 //! Held nodes and faces: the corners a tool holds are not moved, and the multiplier of a triangle
 //! with held corners is the one of a triangle whose corners all move (the held ones' share not
 //! given): a cut near a held corner closes over a few ticks, where taking it all from the free
-//! corners' small weights would throw them off the tool (until 2026-12-07 such cuts, three quarters
-//! of their weight or more on held corners, were left to the held nodes; with the threshold of
-//! [`FINE`] at one, the tool sank between them, or the contact flickered). A node whose triangles a tool pressed in the last tick is not captured by that
-//! tool (graspers excepted: their jaws take what they close on): held on the tool's surface, the
-//! triangles beside it would rise through a tool finer than them, and the contact would flicker
-//! between the node and its faces.
+//! corners' small weights would throw them off the tool (until 2026-12-07 such cuts, three
+//! quarters of their weight or more on held corners, were left to the held nodes; with the
+//! threshold of [`FINE`] at one, the tool sank between them, or the contact flickered). A node
+//! whose triangles a tool pressed in the last tick is not captured by that tool (graspers
+//! excepted: their jaws take what they close on): held on the tool's surface, the triangles beside
+//! it would rise through a tool finer than them, and the contact would flicker between the node
+//! and its faces.
 //!
 //! Bodies that refine at contact (`subdivision`) answer such cuts the paper's way, with a node
 //! inserted there (`crate::topology::refine`); the world runs this stage for the others.
