@@ -1351,13 +1351,10 @@ impl World {
                 check.take(&body.surface, blocks);
             }
             capture_broad_phase(&body.surface, tool, blocks, &mut broad.nodes);
-            // A node whose triangles this tool pressed in the last tick is the faces' (a
-            // grasper's jaws take what they close on).
-            if !matches!(tool.shape, ToolShape::Grasper { .. }) {
-                broad
-                    .nodes
-                    .retain(|&i| !broad.faces.pressed_by(i as usize, tool_index));
-            }
+            // A node whose triangles this tool pressed in the last tick is the faces'.
+            broad
+                .faces
+                .leave_pressed(&mut broad.nodes, tool, tool_index);
             clock.enter(Stage::ToolCcd);
             counters.tool_captures +=
                 capture_among(&mut body.surface, tool_index, tool, &broad.nodes, dt);

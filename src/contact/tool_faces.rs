@@ -207,6 +207,15 @@ impl ToolFaces {
             .is_some_and(|&p| p == tool as u32 + 1)
     }
 
+    /// Leaves out of `candidates` (nodes the broad phase kept for `tool`, index `tool_index`) the
+    /// nodes whose triangles that tool pressed in the last face stage (see [`Self::pressed_by`]);
+    /// a grasper's jaws take what they close on, so its candidates are kept.
+    pub fn leave_pressed(&self, candidates: &mut Vec<u32>, tool: &Tool, tool_index: usize) {
+        if !matches!(tool.shape, ToolShape::Grasper { .. }) {
+            candidates.retain(|&i| !self.pressed_by(i as usize, tool_index));
+        }
+    }
+
     fn rebuild_if_stale(&mut self, surface: &Surface, version: u64) {
         let key = (
             version,
