@@ -284,6 +284,31 @@ fn stroke_ticks(text: &str, ticks: usize) -> Vec<StrokeTick> {
         .collect()
 }
 
+/// A stroke's ticks (force, contacts, inside) from the probe's first contact to the end of the
+/// stroke, the ticks without contact among them, and the ticks of the whole run with the probe
+/// inside.
+struct Pressed<'a> {
+    first: usize,
+    pressed: &'a [(Vec3, u32, bool)],
+    without_contact: usize,
+    inside: usize,
+}
+
+/// [`Pressed`] of `ticks`, whose stroke ends at tick `end`.
+fn pressed_until(ticks: &[(Vec3, u32, bool)], end: usize) -> Pressed<'_> {
+    let first = ticks
+        .iter()
+        .position(|t| t.1 > 0)
+        .expect("the probe met the organ");
+    let pressed = &ticks[first..end];
+    Pressed {
+        first,
+        pressed,
+        without_contact: pressed.iter().filter(|t| t.1 == 0).count(),
+        inside: ticks.iter().filter(|t| t.2).count(),
+    }
+}
+
 /// The probe stays on the surface through the press and the stroke, and what the device feels
 /// changes smoothly: without the faces it sinks between the nodes into the organ.
 #[test]
@@ -291,14 +316,13 @@ fn a_fine_probe_stroked_over_a_coarse_organ_stays_on_its_surface() {
     let control = thin_probe_stroke(false);
     let inside_without = control.iter().filter(|t| t.2).count();
     let ticks = thin_probe_stroke(true);
-    let first = ticks
-        .iter()
-        .position(|t| t.1 > 0)
-        .expect("the probe met the organ");
     // From the first contact to the end of the stroke (tick 2 500), then the lift.
-    let pressed = &ticks[first..2500];
-    let without_contact = pressed.iter().filter(|t| t.1 == 0).count();
-    let inside = ticks.iter().filter(|t| t.2).count();
+    let Pressed {
+        first,
+        pressed,
+        without_contact,
+        inside,
+    } = pressed_until(&ticks, 2500);
     let mut jumps: Vec<f64> = pressed
         .windows(2)
         .map(|w| (w[1].0 - w[0].0).norm())
@@ -623,23 +647,22 @@ script = [
 }
 
 /// A probe about as wide as a soft organ's triangles, pressed deep and stroked: the triangles
-/// keep it out (it fits between their corners, its radius below their circle's). When the faces met only tools finer than half that circle, the organ's surface
-/// closed over it: no contact on 425 of the 615 ticks from the first contact to the end of the
-/// stroke, the probe inside the organ on 584 ticks (as with nodes only), and the organ hanging on
-/// it as it lifted (−0.42 N).
+/// keep it out (it fits between their corners, its radius below their circle's). When the faces
+/// met only tools finer than half that circle, the organ's surface closed over it: no contact on
+/// 425 of the 615 ticks from the first contact to the end of the stroke, the probe inside the
+/// organ on 584 ticks (as with nodes only), and the organ hanging on it as it lifted (−0.42 N).
 #[test]
 fn a_probe_pressed_deep_into_a_soft_organ_and_stroked_stays_on_its_surface() {
     let control = soft_organ_stroke(false);
     let inside_without = control.iter().filter(|t| t.2).count();
     let ticks = soft_organ_stroke(true);
-    let first = ticks
-        .iter()
-        .position(|t| t.1 > 0)
-        .expect("the probe met the organ");
     // From the first contact to the end of the stroke (tick 1 250); then the lift.
-    let pressed = &ticks[first..1250];
-    let without_contact = pressed.iter().filter(|t| t.1 == 0).count();
-    let inside = ticks.iter().filter(|t| t.2).count();
+    let Pressed {
+        first,
+        pressed,
+        without_contact,
+        inside,
+    } = pressed_until(&ticks, 1250);
     let steps: Vec<f64> = pressed
         .windows(2)
         .map(|w| (w[1].0 - w[0].0).norm())
