@@ -696,19 +696,7 @@ fn stacked_pair_pressed(lift: f64, link_damping: Option<f64>, deepest: f64) -> P
         }
         // The probe going down (from 1.5 to 2 s).
         if (1500..=2000).contains(&k) && force > 0.0 {
-            let centre = world.tools[0].pose.position_in_world;
-            let s = &world.bodies[1].surface;
-            let nearest = s
-                .triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(|v| s.position_in_world[v as usize]);
-                    (palpa::collision::tool::closest_point_on_triangle(&centre, &a, &b, &c)
-                        - centre)
-                        .norm()
-                })
-                .fold(f64::INFINITY, f64::min);
-            deepest_cut = deepest_cut.max(PROBE_RADIUS - nearest);
+            deepest_cut = deepest_cut.max(-common::tool_clearance(&world, 1));
             // From 10 ms after the probe struck the organ (the impact's impulse passed).
             let first = *first_contact.get_or_insert(k);
             if k > first + 10 {

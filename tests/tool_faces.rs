@@ -72,22 +72,6 @@ script = [
     (World::from_scene(&common::scene(&text)), top)
 }
 
-/// The least distance from the tool's capsules to the body's surface, less their radius (m):
-/// negative when a triangle cuts into the tool.
-fn clearance(world: &World) -> f64 {
-    let tool = &world.tools[0];
-    let s = &world.bodies[0].surface;
-    let mut least = f64::INFINITY;
-    for part in &tool.parts_end[..tool.part_count] {
-        for tri in &s.triangles {
-            let [a, b, c] = tri.map(|v| s.position_in_world[v as usize]);
-            let d = palpa::collision::tool::segment_triangle_distance(&part.a, &part.b, &a, &b, &c);
-            least = least.min(d - part.radius);
-        }
-    }
-    least
-}
-
 /// Σ over the nodes of the links' force on them (N): at rest, with no gravity and springs that
 /// cancel in pairs, what holds the body against the tool.
 fn link_force_sum(world: &World) -> Vec3 {
@@ -125,7 +109,7 @@ fn a_tool_finer_than_the_mesh_presses_the_triangles_between_the_nodes() {
                     first_contact = Some(tick);
                 }
                 if tick > 100 {
-                    least = least.min(clearance(&world));
+                    least = least.min(common::tool_clearance(&world, 0));
                 }
                 let b = &world.bodies[0];
                 let w = common::winding_number(
@@ -564,7 +548,7 @@ script = [
                 inside += 1;
             }
             if tick > 1000 {
-                least = least.min(clearance(&world));
+                least = least.min(common::tool_clearance(&world, 0));
             }
             if first.is_none() && world.tools[0].feedback.contacts > 0 {
                 first = Some(tick);

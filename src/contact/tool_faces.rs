@@ -201,7 +201,7 @@ impl ToolFaces {
     /// Whether tool `tool` pressed a triangle with corner `node` in the last face stage: such a
     /// node is not captured by it (the faces carry that contact; holding the node at the tool's
     /// surface would let the triangles beside it cut into the tool).
-    pub fn pressed_by(&self, node: usize, tool: usize) -> bool {
+    fn pressed_by(&self, node: usize, tool: usize) -> bool {
         self.pressed_by
             .get(node)
             .is_some_and(|&p| p == tool as u32 + 1)

@@ -467,3 +467,19 @@ pub fn self_crossings(body: &palpa::body::Body) -> usize {
     }
     count
 }
+
+/// The least distance from the first tool's capsules to body `body`'s surface, less their radius
+/// (m): negative when a triangle cuts into the tool.
+pub fn tool_clearance(world: &palpa::world::World, body: usize) -> f64 {
+    let tool = &world.tools[0];
+    let s = &world.bodies[body].surface;
+    let mut least = f64::INFINITY;
+    for part in &tool.parts_end[..tool.part_count] {
+        for tri in &s.triangles {
+            let [a, b, c] = tri.map(|v| s.position_in_world[v as usize]);
+            let d = palpa::collision::tool::segment_triangle_distance(&part.a, &part.b, &a, &b, &c);
+            least = least.min(d - part.radius);
+        }
+    }
+    least
+}
