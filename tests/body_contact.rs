@@ -238,19 +238,18 @@ fn a_block_on_a_tilted_body_sticks_or_slides_with_coulomb_friction() {
 }
 
 /// An organ resting on another, pressed by a probe: it stays on the lower one and comes to rest
-/// (kinetic energy below 1e-5 J at tick 3 499 and at every tick from 1 s after the probe left —
-/// with the multi-rate integrator from 1.5 s, see below —, laid at three heights; before the held
-/// contacts, single ticks in which one node fell reached 1.3e-5 to 2.0e-5 J there, see the README);
-/// no node of either is ever inside the other and no surface crosses the other; the contact forces
-/// on the two organs are equal and opposite every tick; without the probe, the pair's energy never
-/// grows. With the multi-rate (default) and the implicit integrator.
+/// (kinetic energy below 1e-5 J at tick 3 499 and at every tick from 1 s after the probe left,
+/// laid at three heights; before the held contacts, single ticks in which one node
+/// fell reached 1.3e-5 to 2.0e-5 J there, see the README); no node of either is ever inside the
+/// other and no surface crosses the other; the contact forces on the two organs are equal and
+/// opposite every tick; without the probe, the pair's energy never grows. With the multi-rate
+/// (default) and the implicit integrator.
 ///
-/// Multi-rate, 1 to 1.5 s after the probe left: not met. Until 2026-12-07 the probe (a 6 mm
-/// sphere) sank between the upper organ's nodes, 2.3 mm into its surface, holding one node (its
-/// faces met only tools finer than half of a triangle's circle); the organ then rang below 7.1e-6 J
-/// from 1 s on. Kept out by the faces, the probe presses 8.6 N instead of 6.0, and the upper
-/// organ's bounce on the lower one is still at 1.0e-5 to 1.1e-5 J 1 to 1.1 s after it left
-/// (printed); the implicit integrator's pair is below 1e-5 from 1 s.
+/// The multi-rate figure from 1 s is near the bound: what rings is the upper organ thrown up as the
+/// probe lifts, bouncing on the lower one about every 0.37 s with its energy falling about 5× a
+/// bounce, and a peak falls near 1 s (README, **Contact between bodies → What must be shown**,
+/// item 1). From 2026-12-07 (the probe kept out by the faces, pressing 8.6 N instead of 6.0) to
+/// the faces' contacts being taken again in their later sweeps it was 1.02–1.08e-5 J.
 #[test]
 fn an_organ_resting_on_another_and_pressed_stays_and_comes_to_rest() {
     for integrator in ["multirate", "implicit"] {
@@ -357,15 +356,9 @@ fn organ_pressed_on_another_comes_to_rest(integrator: &str, lift: f64) {
         "{integrator}: still moving: {resting_kinetic} J"
     );
     assert!(
-        left_at > 0 && most_later < 1e-5,
-        "{integrator}: a tick from 1.5 s after the probe left (tick {left_at}) moved with {most_later} J"
+        left_at > 0 && most_after < 1e-5,
+        "{integrator}: a tick from 1 s after the probe left (tick {left_at}) moved with {most_after} J"
     );
-    if integrator != "multirate" {
-        assert!(
-            most_after < 1e-5,
-            "{integrator}: a tick from 1 s after the probe left (tick {left_at}) moved with {most_after} J"
-        );
-    }
     // Still on top of the lower organ: its centre above the lower one's top at rest (3 cm above
     // the lower's centre; slid off, it would lie on the table, below the lower's centre), within
     // its footprint.
