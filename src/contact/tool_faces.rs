@@ -893,7 +893,7 @@ mod tests {
         );
     }
 
-    /// A probe pressed 2 mm into the triangles round a corner that is fifty times lighter than
+    /// A probe pressed 1.2 mm into the triangles round a corner fifty times lighter than
     /// the others: pushed out at one point each, the triangles turn about their heavy corners;
     /// taken again in the later sweeps, their contacts leave none of them in the probe.
     #[test]
