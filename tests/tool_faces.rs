@@ -181,10 +181,32 @@ fn a_tool_finer_than_the_mesh_presses_the_triangles_between_the_nodes() {
 /// then lifted; returns, per tick, the feedback force and contact count and whether the probe's
 /// centre was inside the organ.
 fn thin_probe_stroke(face_contact: bool) -> Vec<(Vec3, u32, bool)> {
-    thin_probe_stroke_with(face_contact, 0.3)
+    force_contacts_inside(thin_probe_stroke_with(face_contact, 0.3))
+}
+
+/// (force, contacts, inside) of each tick.
+fn force_contacts_inside(ticks: Vec<StrokeTick>) -> Vec<(Vec3, u32, bool)> {
+    ticks
         .into_iter()
         .map(|t| (t.force, t.contacts, t.inside))
         .collect()
+}
+
+/// The scene `bodies_and_tools` (an organ and the probe stroking it) on a table, with the world's
+/// `face_contact`.
+fn on_the_table(face_contact: bool, bodies_and_tools: &str) -> String {
+    format!(
+        r#"
+[world]
+face_contact = {face_contact}
+
+[[obstacle]]
+name = "table"
+plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+friction = 0.4
+static_friction = 0.6
+{bodies_and_tools}"#
+    )
 }
 
 /// A tick of [`thin_probe_stroke_with`].
@@ -202,9 +224,6 @@ struct StrokeTick {
 fn thin_probe_stroke_with(face_contact: bool, friction: f64) -> Vec<StrokeTick> {
     let text = format!(
         r#"
-[world]
-face_contact = {face_contact}
-
 [[body]]
 name = "organ"
 mesh = {{ ellipsoid = {{ radii = [0.08, 0.05, 0.04], subdivisions = 3 }} }}
@@ -216,12 +235,6 @@ surface_damping = 0.01
 link_stiffness = 15.0
 link_damping = 0.04
 friction = {friction}
-
-[[obstacle]]
-name = "table"
-plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
-friction = 0.4
-static_friction = 0.6
 
 [[tool]]
 name = "probe"
@@ -235,7 +248,7 @@ script = [
 ]
 "#
     );
-    stroke_ticks(&text, 3000)
+    stroke_ticks(&on_the_table(face_contact, &text), 3000)
 }
 
 /// `ticks` ticks of the scene `text`, whose first tool strokes its first body: what the tool
@@ -589,14 +602,10 @@ script = [
 /// a 5 mm probe pressed 5 mm into its top (0.5 to 0.75 s), stroked 2 cm sideways in 0.5 s and
 /// lifted away: per tick, (feedback force, contacts and faces, probe centre inside the surface).
 fn soft_organ_stroke(face_contact: bool) -> Vec<(Vec3, u32, bool)> {
-    let text = format!(
-        r#"
-[world]
-face_contact = {face_contact}
-
+    let text = r#"
 [[body]]
 name = "uterus"
-mesh = {{ ellipsoid = {{ radii = [0.025, 0.037, 0.022], subdivisions = 3 }} }}
+mesh = { ellipsoid = { radii = [0.025, 0.037, 0.022], subdivisions = 3 } }
 position = [0.0, 0.0, 0.0225]
 surface_mass = 0.06
 rigid_mass = 0.03
@@ -606,28 +615,18 @@ link_stiffness = 50.0
 link_damping = 0.05
 friction = 0.3
 
-[[obstacle]]
-name = "table"
-plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
-friction = 0.4
-static_friction = 0.6
-
 [[tool]]
 name = "probe"
-shape = {{ sphere = {{ radius = 0.0025 }} }}
+shape = { sphere = { radius = 0.0025 } }
 script = [
-  {{ t = 0.0, position = [0.0, -0.01, 0.06] }},
-  {{ t = 0.5, position = [0.0, -0.01, 0.0495] }},
-  {{ t = 0.75, position = [0.0, -0.01, 0.0395] }},
-  {{ t = 1.25, position = [0.0, 0.01, 0.0395] }},
-  {{ t = 1.75, position = [0.0, 0.01, 0.07] }},
+  { t = 0.0, position = [0.0, -0.01, 0.06] },
+  { t = 0.5, position = [0.0, -0.01, 0.0495] },
+  { t = 0.75, position = [0.0, -0.01, 0.0395] },
+  { t = 1.25, position = [0.0, 0.01, 0.0395] },
+  { t = 1.75, position = [0.0, 0.01, 0.07] },
 ]
-"#
-    );
-    stroke_ticks(&text, 1800)
-        .into_iter()
-        .map(|t| (t.force, t.contacts, t.inside))
-        .collect()
+"#;
+    force_contacts_inside(stroke_ticks(&on_the_table(face_contact, text), 1800))
 }
 
 /// A probe about as wide as a soft organ's triangles, pressed deep and stroked: the triangles
