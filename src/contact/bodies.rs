@@ -45,6 +45,9 @@ use crate::collision::tool::{
 use crate::contact::self_pairs::SelfPairs;
 use crate::contact::tool::NO_TOOL;
 
+#[path = "untangle.rs"]
+mod untangle;
+
 /// Contact skin (m): a vertex that ends the tick within this distance of another body's face is in
 /// contact with it, and the response keeps it from closing the gap further.
 pub const CONTACT_SKIN: f64 = 1e-3;
@@ -153,6 +156,9 @@ pub struct BodyContactCounters {
     /// (its last round still answered collisions, with no round after it): pairs of their
     /// triangles may have gone untested.
     pub self_unlisted: u32,
+    /// Nodes found inside another body (crossed where the net could not answer, as under a tool
+    /// that holds nodes of both), being let out (see `contact/untangle.rs`).
+    pub inside_nodes: u32,
 }
 
 /// A vertex of one body touching a face of another, or an edge touching an edge (or about to,
@@ -428,6 +434,8 @@ pub struct BodyContactScratch {
     /// Per body (and room for pieces), whether a mark of `answered` is set: the net's run clears
     /// them first, so that the marks the response reads are those of the net's last run only.
     marked: Vec<bool>,
+    /// Nodes found inside another body, let out (see `contact/untangle.rs`).
+    untangle: untangle::Untangle,
     /// The force the contact response put on each body this tick (N, world frame): the impulses on
     /// its nodes over the step (those on a node a tool moves go on to the tool). Equal and opposite
     /// between two touching bodies.
@@ -592,6 +600,7 @@ impl BodyContactScratch {
             max_motion: Room::with_capacity(count),
             impulses: 0,
             marked: vec![false; answered.len()],
+            untangle: untangle::Untangle::new(answered.iter().map(|r| r.capacity())),
             answered,
             forces: vec![Vec3::zeros(); count],
             work: vec![0.0; count],
@@ -609,6 +618,12 @@ impl BodyContactScratch {
 }
 
 impl BodyContactScratch {
+    /// After the net: the nodes found inside another body moved out ([`untangle::Untangle::run`]).
+    fn let_out(&mut self, bodies: &mut [Body], counters: &mut BodyContactCounters) {
+        self.untangle.run(bodies, &mut self.bvhs, &mut self.moved);
+        counters.inside_nodes = self.untangle.inside_nodes;
+    }
+
     /// Keeps the response's candidate pairs from tick to tick while the bodies stay within their
     /// slack (`true`, the default), or lists them again every tick (then the net's least gaps,
     /// forgotten at every listing, never pass a pair of bodies over either: the same bits, from
@@ -754,6 +769,27 @@ fn triangles_apart(sa: &[Vec3; 3], sb: &[Vec3; 3], most: f64) -> bool {
     false
 }
 
+/// Whether segment `p`–`q` passes through the inside of triangle `t` (not along its plane).
+fn segment_pierces(p: &Vec3, q: &Vec3, t: &[Vec3; 3]) -> bool {
+    let normal = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let (dp, dq) = ((p - t[0]).dot(&normal), (q - t[0]).dot(&normal));
+    if dp * dq >= 0.0 {
+        return false;
+    }
+    // Where the segment meets the plane, against each side: on the inner side of all three.
+    let hit = p + (q - p) * (dp / (dp - dq));
+    (0..3).all(|k| {
+        let (a, b) = (t[k], t[(k + 1) % 3]);
+        (b - a).cross(&(hit - a)).dot(&normal) > 0.0
+    })
+}
+
+/// Whether triangles `a` and `b` cross each other: a side of one passes through the other.
+fn triangles_cross(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    (0..3).any(|k| segment_pierces(&a[k], &a[(k + 1) % 3], b))
+        || (0..3).any(|k| segment_pierces(&b[k], &b[(k + 1) % 3], a))
+}
+
 /// The bodies of `nodes` moved (a collision stopped them; see [`BodyContactScratch::moved`]).
 fn mark_moved(moved: &mut [bool], nodes: &[NodeRef; 4]) {
     for r in nodes {
@@ -780,7 +816,7 @@ enum Answer {
 fn test_primitive(
     bodies: &mut [Body],
     nodes: [NodeRef; 4],
-    (vertex_face, most, common): (bool, f64, &Vec3),
+    (vertex_face, most, common, triangles): (bool, f64, &Vec3, Option<&[[Vec3; 3]; 2]>),
     (settings, obstacles): (&CcdSettings, &[Obstacle]),
     answer: Answer,
     dt: f64,
@@ -833,6 +869,11 @@ fn test_primitive(
         )
     };
     let hit = hit?;
+    // The two bodies' triangles this pair is tested through cross each other at the start of the
+    // tick: the crossing is there already, and this one moves it (or undoes it): let through.
+    if triangles.is_some_and(|[a, b]| triangles_cross(a, b)) {
+        return None;
+    }
     if hit.time_of_impact == 0.0 && parting(bodies, &nodes, vertex_face) {
         // Touching at the start and parting: left alone, so bodies can separate.
         return None;
@@ -1117,6 +1158,7 @@ pub fn resolve_body_collisions(
     // Bodies whose surface may not pass through itself, tested whether or not another is near.
     let self_on = (0..bodies.len()).any(|k| SelfPairs::on(bodies, k));
     if prepared == Prepared::NoneNear && !self_on {
+        scratch.let_out(bodies, &mut counters);
         return counters;
     }
     let mut skipping = false;
@@ -1167,6 +1209,7 @@ pub fn resolve_body_collisions(
             relist_self_pairs(bodies, scratch, round, &mut counters);
         }
     }
+    scratch.let_out(bodies, &mut counters);
     // Checked, where the net moved anything: the far listings hold for the trajectories as they
     // end (not when the last round still answered collisions, with no round after it to list
     // again).
@@ -1505,6 +1548,9 @@ fn test_triangle_pair(
     if local < most && triangles_apart(&sa, &sb, local) {
         return 0;
     }
+    // (Two bodies' triangles: a collision between them is let through where they cross already.)
+    let starts = [sa, sb];
+    let crossing = (i != j).then_some(&starts);
     // Each vertex and side through the one triangle that owns it: every
     // vertex–face and edge–edge pair is tested once.
     let (oa, ob) = if every {
@@ -1528,7 +1574,7 @@ fn test_triangle_pair(
                 bodies,
                 scratch,
                 (nodes, true),
-                (most, &common, obstacles),
+                (most, &common, obstacles, crossing),
                 (round, skipping, overflow_freeze),
                 dt,
             );
@@ -1550,7 +1596,7 @@ fn test_triangle_pair(
                 bodies,
                 scratch,
                 (nodes, false),
-                (most, &common, obstacles),
+                (most, &common, obstacles, crossing),
                 (round, skipping, overflow_freeze),
                 dt,
             );
@@ -1568,11 +1614,13 @@ fn test_and_answer(
     bodies: &mut [Body],
     scratch: &mut BodyContactScratch,
     (nodes, vertex_face): ([NodeRef; 4], bool),
-    (most, common, obstacles): (f64, &Vec3, &[Obstacle]),
+    (most, common, obstacles, triangles): (f64, &Vec3, &[Obstacle], Option<&[[Vec3; 3]; 2]>),
     (round, skipping, overflow_freeze): (usize, bool, bool),
     dt: f64,
 ) -> u32 {
-    if !worth_testing(&scratch.answered, &nodes, round, skipping) {
+    if !worth_testing(&scratch.answered, &nodes, round, skipping)
+        || scratch.untangle.lets_cross(&nodes, vertex_face)
+    {
         return 0;
     }
     let answer = if overflow_freeze {
@@ -1585,7 +1633,7 @@ fn test_and_answer(
     let answered = test_primitive(
         bodies,
         nodes,
-        (vertex_face, most, common),
+        (vertex_face, most, common, triangles),
         (&scratch.settings, obstacles),
         answer,
         dt,
@@ -1595,6 +1643,7 @@ fn test_and_answer(
     scratch.impulses += u32::from(answered == Some(Answer::Impulse));
     let hit = answered.is_some();
     if hit {
+        scratch.untangle.seed(&nodes, vertex_face);
         mark_moved(&mut scratch.moved, &nodes);
         remember(
             (&mut scratch.remembered, &mut scratch.remembered_dropped),
@@ -4624,6 +4673,26 @@ mod tests {
             (state >> 11) as f64 / (1u64 << 53) as f64 * 0.04 - 0.02
         };
         (0..n).map(|_| Vec3::new(next(), next(), next())).collect()
+    }
+
+    #[test]
+    fn triangles_cross_where_a_side_passes_through_the_other_and_not_where_they_touch() {
+        let v = Vec3::new;
+        let flat = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
+        // Upright through the middle of the flat one: its sides pass through it.
+        let through = [v(0.2, 0.2, -0.5), v(0.3, 0.2, 0.5), v(0.2, 0.3, 0.5)];
+        assert!(triangles_cross(&flat, &through));
+        assert!(triangles_cross(&through, &flat));
+        // Through it the other way: a side of the flat one pierces the upright one.
+        let across = [v(0.5, -0.5, -0.5), v(0.5, -0.5, 0.5), v(0.5, 2.0, 0.0)];
+        assert!(triangles_cross(&flat, &across));
+        // Resting on it (a corner on its plane), beside it, and above it: no crossing.
+        let resting = [v(0.2, 0.2, 0.0), v(0.3, 0.2, 0.5), v(0.2, 0.3, 0.5)];
+        let beside = [v(2.0, 2.0, -0.5), v(2.1, 2.0, 0.5), v(2.0, 2.1, 0.5)];
+        let above = flat.map(|p| p + v(0.0, 0.0, 1e-6));
+        for other in [resting, beside, above] {
+            assert!(!triangles_cross(&flat, &other) && !triangles_cross(&other, &flat));
+        }
     }
 
     #[test]
