@@ -1361,6 +1361,43 @@ fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
     assert_eq!(worst, 0, "the restore left the organs crossed");
 }
 
+/// Two soft organs stacked on the table (a 642-node ellipsoid on a larger one) and an 8 mm probe
+/// with no force limit following `script` (the lines of its key frames): the scene of the
+/// crushing tests.
+fn crushed_stack(script: &str) -> String {
+    format!(
+        r#"
+[[body]]
+name = "lower"
+mesh = {{ ellipsoid = {{ radii = [0.07, 0.05, 0.03], subdivisions = 3 }} }}
+position = [0.0, 0.0, 0.0301]
+surface_mass = 0.3
+rigid_mass = 1.0
+surface_stiffness = 40.0
+link_stiffness = 40.0
+
+[[body]]
+name = "upper"
+mesh = {{ ellipsoid = {{ radii = [0.05, 0.04, 0.02], subdivisions = 3 }} }}
+position = [0.0, 0.0, 0.0805]
+surface_mass = 0.1
+rigid_mass = 0.3
+surface_stiffness = 30.0
+link_stiffness = 30.0
+
+[[obstacle]]
+name = "table"
+plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+
+[[tool]]
+name = "probe"
+shape = {{ sphere = {{ radius = 0.008 }} }}
+script = [
+{script}]
+"#
+    )
+}
+
 /// Two stacked 642-node organs (1.3 kg, 6 cm thick, under 0.4 kg, 4 cm thick) and a probe of 8 mm
 /// radius with no force limit pushed down into the stack until its tip is 1.8 cm below the lower organ's
 /// top: the upper organ is squashed through itself (the model has no contact
@@ -1370,46 +1407,23 @@ fn the_guard_restoring_an_organ_under_another_leaves_them_uncrossed() {
 /// and the guard acted 21 and 22 times on the two organs (tick 2 002 first). With the contacts'
 /// amplification bounded (eight times), the free nodes still reached 19.5 m/s near tick 2 000: such a
 /// contact asked them to undo its held nodes' own approach, about 2 m/s where the probe holds nodes
-/// anew. Kept only from adding to that approach, no node is faster than 2.4 m/s (asserted below
-/// 5 m/s; the probe itself moves at 6 cm/s) and the guard stays quiet. (The organs do end up crossed
-/// where the probe holds both: see the README, "Twelfth session".)
+/// anew. Kept only from adding to that approach, no node was faster than 2.4 m/s (asserted below
+/// 5 m/s; the probe itself moves at 6 cm/s) and the guard stays quiet. Since the net lets through
+/// the collisions of triangles that cross already (2026-12-07), 3.5 m/s: the organs do end up
+/// crossed where the probe holds both (README, "Twelfth session"), and those crossed parts now
+/// move where they were held. (Undone when the probe lifts: the next test.)
 #[test]
 fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
-    let text = r#"
-[[body]]
-name = "lower"
-mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 3 } }
-position = [0.0, 0.0, 0.0301]
-surface_mass = 0.3
-rigid_mass = 1.0
-surface_stiffness = 40.0
-link_stiffness = 40.0
-
-[[body]]
-name = "upper"
-mesh = { ellipsoid = { radii = [0.05, 0.04, 0.02], subdivisions = 3 } }
-position = [0.0, 0.0, 0.0805]
-surface_mass = 0.1
-rigid_mass = 0.3
-surface_stiffness = 30.0
-link_stiffness = 30.0
-
-[[obstacle]]
-name = "table"
-plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-
-[[tool]]
-name = "probe"
-shape = { sphere = { radius = 0.008 } }
-script = [
-  { t = 0.0, position = [0.0, 0.0, 0.14] },
-  { t = 0.5, position = [0.0, 0.0, 0.14] },
-  { t = 1.5, position = [0.0, 0.0, 0.07] },
-  { t = 2.0, position = [0.0, 0.0, 0.05] },
-  { t = 2.5, position = [0.03, 0.0, 0.05] },
-]
-"#;
-    let mut world = World::from_scene(&common::scene(text));
+    let text = crushed_stack(
+        "\
+  { t = 0.0, position = [0.0, 0.0, 0.14] },\n\
+  { t = 0.5, position = [0.0, 0.0, 0.14] },\n\
+  { t = 1.5, position = [0.0, 0.0, 0.07] },\n\
+  { t = 2.0, position = [0.0, 0.0, 0.05] },\n\
+  { t = 2.5, position = [0.03, 0.0, 0.05] },\n\
+",
+    );
+    let mut world = World::from_scene(&common::scene(&text));
     let (mut fastest, mut pressed) = (0.0f64, 0.0f64);
     for _ in 0..2100 {
         world.step();
@@ -1444,43 +1458,18 @@ script = [
 /// edge of one passes through a face of the other, and from 5 s the net answers nothing.
 #[test]
 fn a_stack_crushed_through_itself_by_a_probe_comes_apart_when_it_lifts() {
-    let text = r#"
-[[body]]
-name = "lower"
-mesh = { ellipsoid = { radii = [0.07, 0.05, 0.03], subdivisions = 3 } }
-position = [0.0, 0.0, 0.0301]
-surface_mass = 0.3
-rigid_mass = 1.0
-surface_stiffness = 40.0
-link_stiffness = 40.0
-
-[[body]]
-name = "upper"
-mesh = { ellipsoid = { radii = [0.05, 0.04, 0.02], subdivisions = 3 } }
-position = [0.0, 0.0, 0.0805]
-surface_mass = 0.1
-rigid_mass = 0.3
-surface_stiffness = 30.0
-link_stiffness = 30.0
-
-[[obstacle]]
-name = "table"
-plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }
-
-[[tool]]
-name = "probe"
-shape = { sphere = { radius = 0.008 } }
-script = [
-  { t = 0.0, position = [0.0, 0.0, 0.14] },
-  { t = 0.5, position = [0.0, 0.0, 0.14] },
-  { t = 1.5, position = [0.0, 0.0, 0.07] },
-  { t = 2.0, position = [0.0, 0.0, 0.045] },
-  { t = 3.0, position = [0.03, 0.0, 0.045] },
-  { t = 4.0, position = [0.03, 0.0, 0.045] },
-  { t = 4.5, position = [0.03, 0.0, 0.14] },
-]
-"#;
-    let mut world = World::from_scene(&common::scene(text));
+    let text = crushed_stack(
+        "\
+  { t = 0.0, position = [0.0, 0.0, 0.14] },\n\
+  { t = 0.5, position = [0.0, 0.0, 0.14] },\n\
+  { t = 1.5, position = [0.0, 0.0, 0.07] },\n\
+  { t = 2.0, position = [0.0, 0.0, 0.045] },\n\
+  { t = 3.0, position = [0.03, 0.0, 0.045] },\n\
+  { t = 4.0, position = [0.03, 0.0, 0.045] },\n\
+  { t = 4.5, position = [0.03, 0.0, 0.14] },\n\
+",
+    );
+    let mut world = World::from_scene(&common::scene(&text));
     let (mut crossed_under_press, mut inside_after, mut crossing_after) = (0, 0, 0);
     let (mut net_late, mut let_out) = (0u32, 0u32);
     for tick in 1..=6000u32 {
