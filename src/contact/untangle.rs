@@ -20,8 +20,8 @@
 //! a side of one organ through a fold of the other.)
 //!
 //! Bounded: at most [`MOST_CHECKS`] nodes looked at a tick and [`MOST_WINDING_TRIANGLES`]
-//! triangles summed for winding numbers (a node is not flagged anew when its body's surface does
-//! not fit what is left), in a fixed order; nothing allocated. In a contact without a crossing
+//! triangles summed for winding numbers (a node is not flagged anew when the other body's surface
+//! does not fit what is left), in a fixed order; nothing allocated. In a contact without a crossing
 //! nothing is flagged and the figures are the same bits.
 
 use super::{Body, CONTACT_SKIN, NodeRef, REST_DISTANCE, barycentric, end_of, inverse_mass_of};
@@ -214,8 +214,10 @@ impl Untangle {
                 body: b as usize,
                 node: v as usize,
             };
-            let flags = &self.inside[r.body];
-            if r.node >= flags.len() || flags[r.node] != NOT_INSIDE {
+            let Some(&flag) = self.inside.get(r.body).and_then(|f| f.get(r.node)) else {
+                continue;
+            };
+            if flag != NOT_INSIDE {
                 continue;
             }
             checks += 1;
