@@ -98,18 +98,8 @@ impl Untangle {
     /// Whether the pair of `nodes` (a vertex–face or edge–edge pair of two bodies) has a node
     /// inside the pair's other body: its crossing is let through.
     pub(super) fn lets_cross(&self, nodes: &[NodeRef; 4], vertex_face: bool) -> bool {
-        if self.flagged.is_empty() {
-            return false;
-        }
-        let (a, b) = (nodes[0].body, nodes[3].body);
-        if a == b {
-            return false;
-        }
-        let split = if vertex_face { 1 } else { 2 };
-        nodes.iter().enumerate().any(|(k, r)| {
-            let other = if k < split { b } else { a };
-            self.is_inside(*r, other)
-        })
+        !self.flagged.is_empty()
+            && with_other_body(nodes, vertex_face).any(|(r, other)| self.is_inside(r, other))
     }
 
     /// Whether node `r` is flagged inside body `other`.
@@ -123,13 +113,7 @@ impl Untangle {
     /// Keeps the nodes of a collision the net answered (pairs of two bodies) for a look after the
     /// net.
     pub(super) fn seed(&mut self, nodes: &[NodeRef; 4], vertex_face: bool) {
-        let (a, b) = (nodes[0].body, nodes[3].body);
-        if a == b {
-            return;
-        }
-        let split = if vertex_face { 1 } else { 2 };
-        for (k, r) in nodes.iter().enumerate() {
-            let other = if k < split { b } else { a };
+        for (r, other) in with_other_body(nodes, vertex_face) {
             if self.seeds.len() < self.seeds.capacity() {
                 self.seeds
                     .push([r.body as u32, r.node as u32, other as u32]);
@@ -338,6 +322,21 @@ impl Untangle {
         let depth = -(p - q).dot(&normal);
         depth.is_finite().then_some(Nearest { normal, depth })
     }
+}
+
+/// Each node of a pair of two bodies (the vertex, then the face's nodes; or the two edges') with
+/// the pair's other body; none for a pair within one body.
+fn with_other_body(
+    nodes: &[NodeRef; 4],
+    vertex_face: bool,
+) -> impl Iterator<Item = (NodeRef, usize)> + '_ {
+    let (a, b) = (nodes[0].body, nodes[3].body);
+    let split = if vertex_face { 1 } else { 2 };
+    nodes
+        .iter()
+        .enumerate()
+        .filter(move |_| a != b)
+        .map(move |(k, &r)| (r, if k < split { b } else { a }))
 }
 
 /// Moves node `r` (inside another body) out along `nearest`'s normal by the depth and the rest
