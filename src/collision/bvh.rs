@@ -48,6 +48,9 @@ pub struct TriangleBvh {
     node_boxes: Room<Aabb>,
     /// Each triangle's place in `order` (the leaves' order), from the last rebuild.
     rank: Room<u32>,
+    /// What the boxes were last fitted to, as its user named it ([`TriangleBvh::set_fit_tag`]);
+    /// 0 after every rebuild and refit until named.
+    fit_tag: u64,
 }
 
 /// [`TriangleBvh::owned`] bit of the triangle's corner `k` (0, 1, 2).
@@ -83,12 +86,14 @@ impl TriangleBvh {
             node_seen: Room::with_capacity(3 * triangles + 3),
             node_boxes: Room::with_capacity(3 * triangles + 3),
             rank: Room::with_capacity(triangles),
+            fit_tag: 0,
         }
     }
 
     /// Builds the hierarchy again for `triangles` at `positions` (after a topology change), in place:
     /// the same tree [`TriangleBvh::build`] gives, allocation-free within the capacity.
     pub fn rebuild(&mut self, triangles: &[[u32; 3]], positions: &[Vec3]) {
+        self.fit_tag = 0;
         self.centroids.clear();
         self.centroids.extend(triangles.iter().map(|t| {
             (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0
@@ -170,6 +175,18 @@ impl TriangleBvh {
         self.built_version == version && self.order.len() == triangles
     }
 
+    /// Names what the boxes were just fitted to (any value but 0), so that a user who fits them to
+    /// the same boxes again can tell it need not ([`TriangleBvh::fit_tag`]). Every rebuild and
+    /// refit forgets the name.
+    pub fn set_fit_tag(&mut self, tag: u64) {
+        self.fit_tag = tag;
+    }
+
+    /// The name given to the boxes since the last rebuild or refit (0: none).
+    pub fn fit_tag(&self) -> u64 {
+        self.fit_tag
+    }
+
     /// Records the topology version the hierarchy was built for.
     pub fn set_built_version(&mut self, version: u64) {
         self.built_version = version;
@@ -178,6 +195,7 @@ impl TriangleBvh {
     /// Refits every box to the triangles swept from `start` to `end` positions, grown by `margin`.
     /// Children come after their parent in the node array, so one backward pass suffices.
     pub fn refit(&mut self, triangles: &[[u32; 3]], start: &[Vec3], end: &[Vec3], margin: f64) {
+        self.fit_tag = 0;
         // Each node's box once (the minima and maxima of the same six points as a triangle's own
         // include: the same boxes), unless the nodes outnumber the room reserved for them.
         let nodes = start.len().min(end.len());

@@ -3628,6 +3628,10 @@ struct CandidateCache {
     /// Per body, the slack of its reference (m): [`CANDIDATE_SLACK`], or 0 for a body that left it
     /// on several ticks in a row.
     slack: Vec<f64>,
+    /// Per body, the name of its reference (a count of the references taken, never 0), which its
+    /// hierarchy carries while fitted to it (see [`Self::refit_for_listing`]).
+    generation: Vec<u64>,
+    generations: u64,
     /// Per body, the boxes of its nodes' trajectories on a recent tick of the net (its *anchor*;
     /// the near bodies' are taken together, see [`Self::list`]), with the topology version and
     /// node count it holds for (`None`: none, or no room), the net's tick it was taken on, and
@@ -3689,6 +3693,8 @@ impl CandidateCache {
             upper: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             reference: vec![None; slots],
             slack: vec![0.0; slots],
+            generation: vec![0; slots],
+            generations: 0,
             anchor_lower: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             anchor_upper: (0..slots).map(|k| Room::with_capacity(room(k))).collect(),
             anchor: vec![None; slots],
@@ -3763,6 +3769,8 @@ impl CandidateCache {
             CANDIDATE_SLACK
         };
         self.reference[k] = boxes_of_trajectories(body, (&mut self.lower[k], &mut self.upper[k]));
+        self.generations += 1;
+        self.generation[k] = self.generations;
     }
 
     /// Brings the lists up to date for the pairs of bodies near each other (`bounds` meet):
@@ -3905,6 +3913,16 @@ impl CandidateCache {
                 bvh.rebuild(&s.triangles, &s.position_in_world);
                 bvh.set_built_version(body.topology_version);
             }
+            // A hierarchy still fitted to the body's reference (its pairs with another body
+            // listed again, its own reference kept) is not fitted again: the same boxes. (Without
+            // a reference the body's trajectories serve, which change every tick.)
+            let tag = match self.reference[k] {
+                Some(_) => self.generation[k],
+                None => 0,
+            };
+            if tag != 0 && bvh.fit_tag() == tag {
+                continue;
+            }
             let (lower, upper) =
                 reference_boxes(self.reference[k], &self.lower[k], &self.upper[k], body);
             bvh.refit(
@@ -3913,6 +3931,7 @@ impl CandidateCache {
                 upper,
                 LIST_MARGIN_PER_SLACK * self.slack[k],
             );
+            bvh.set_fit_tag(tag);
         }
     }
 
