@@ -518,6 +518,23 @@ mod tests {
     }
 
     #[test]
+    fn a_refit_or_a_rebuild_forgets_what_the_boxes_were_fitted_to() {
+        // The body-contact listing skips a refit where the tag still names the reference the
+        // boxes were fitted to; self-contact refits the same hierarchy to other boxes.
+        let sphere = icosphere(0.05, 1);
+        let positions = &sphere.positions_in_body;
+        let mut bvh = TriangleBvh::build(&sphere.triangles, positions);
+        assert_eq!(bvh.fit_tag(), 0);
+        bvh.set_fit_tag(7);
+        assert_eq!(bvh.fit_tag(), 7);
+        bvh.refit(&sphere.triangles, positions, positions, 1e-3);
+        assert_eq!(bvh.fit_tag(), 0);
+        bvh.set_fit_tag(8);
+        bvh.rebuild(&sphere.triangles, positions);
+        assert_eq!(bvh.fit_tag(), 0);
+    }
+
+    #[test]
     fn self_pairs_match_brute_force() {
         let sphere = icosphere(0.05, 2);
         let positions = &sphere.positions_in_body;
