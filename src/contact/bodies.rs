@@ -144,9 +144,10 @@ pub struct BodyContactCounters {
     pub contacts: u32,
     /// Contacts beyond the contact list's capacity (left to the collision net; counted).
     pub contacts_dropped: u32,
-    /// Ordered pairs of bodies whose candidates were listed from the hierarchies this tick, by the
-    /// response and again by the net where the response's pushes took a node out of its slack (the
-    /// others' were kept from an earlier tick).
+    /// Ordered pairs of bodies whose candidates were listed from the hierarchies this tick: by the
+    /// response (its entries, and the net's triangle pairs where they were not listed), and by the
+    /// net (its triangle pairs alone) where the response's pushes or the net's impulses took a
+    /// node out of its slack (the others' were kept from an earlier tick).
     pub listed_pairs: u32,
     /// Times a body with self-contact was brought up to date between two rounds of the net (the
     /// round's stops moved a node's end out of the slack of its far listing; see
@@ -3338,6 +3339,7 @@ pub fn respond_to_body_contacts(
             if scratch.cache.listed[pair] == NOT_LISTED {
                 continue;
             }
+            debug_assert!(!scratch.cache.entries_due[pair], "entries listed");
             let [vertices, edges] = scratch.cache.ranges[pair];
             vertex_face_contacts(bodies, (i, j), vertices, scratch, &mut counters, simd);
             edge_edge_contacts(bodies, (i, j), edges, scratch, &mut counters, simd);
@@ -3656,6 +3658,9 @@ struct CandidateCache {
     /// tick, listed again the next), their ranges (vertices of i, then edges of i when j > i) in
     /// the list in use, and when i < j the range of its triangle pairs (the net's) in theirs.
     listed: Vec<u8>,
+    /// Per ordered pair of bodies: listed by the net without its response's entries (their ranges
+    /// empty), which the response's next call lists (see [`Self::relist`]).
+    entries_due: Vec<bool>,
     ranges: Vec<[(u32, u32); 2]>,
     pair_ranges: Vec<(u32, u32)>,
     /// Per pair of bodies (i < j), the least gap between the boxes of its triangle pairs (the
@@ -3706,6 +3711,7 @@ impl CandidateCache {
             renewed: vec![false; slots],
             streak: vec![0; slots],
             listed: vec![NOT_LISTED; slots * slots],
+            entries_due: vec![false; slots * slots],
             ranges: vec![[(0, 0); 2]; slots * slots],
             pair_ranges: vec![(0, 0); slots * slots],
             least_gaps: vec![(f64::NAN, 0); slots * slots],
@@ -3803,17 +3809,27 @@ impl CandidateCache {
             self.take_anchors(&bodies[..n], near);
         }
         let pairs_of = |i: usize, j: usize| pair_to_list(group, bounds, i, j);
-        if !self.unlist_renewed(n, pairs_of) {
+        // The response's entries are listed by the response only: the net's calls list the
+        // triangle pairs alone (see `relist`).
+        let entries = first_of_tick;
+        if !self.unlist_renewed(n, pairs_of, entries) {
             return;
         }
-        self.refit_for_listing(&bodies[..n], bvhs, pairs_of);
+        self.refit_for_listing(&bodies[..n], bvhs, pairs_of, entries);
         self.relist(
             &bodies[..n],
-            pairs_of,
+            (pairs_of, entries),
             bvhs,
             (near_triangles, found),
             counters,
         );
+    }
+
+    /// Whether ordered pair `i`, `j` (one `pairs_of` asks for) is to be listed: not listed, or,
+    /// with `entries` (the response's call), listed by the net without its entries.
+    fn to_list(&self, (i, j): (usize, usize), entries: bool) -> bool {
+        let pair = i * self.slots + j;
+        self.listed[pair] == NOT_LISTED || (entries && self.entries_due[pair])
     }
 
     /// Per body near another: its references renewed where they no longer hold (or when they are
@@ -3877,16 +3893,23 @@ impl CandidateCache {
     }
 
     /// Unlists the pairs of a renewed body, and those listed only for now or in part; returns
-    /// whether any pair `pairs_of` asks for is left to list.
-    fn unlist_renewed(&mut self, n: usize, pairs_of: impl Fn(usize, usize) -> bool) -> bool {
+    /// whether any pair `pairs_of` asks for is left to list (with `entries`, also one whose
+    /// entries are due).
+    fn unlist_renewed(
+        &mut self,
+        n: usize,
+        pairs_of: impl Fn(usize, usize) -> bool,
+        entries: bool,
+    ) -> bool {
         let mut any = false;
         for i in 0..n {
             for j in 0..n {
                 let pair = i * self.slots + j;
                 if self.renewed[i] || self.renewed[j] || self.listed[pair] > LISTED {
                     self.listed[pair] = NOT_LISTED;
+                    self.entries_due[pair] = false;
                 }
-                any |= self.listed[pair] == NOT_LISTED && pairs_of(i, j);
+                any |= self.to_list((i, j), entries) && pairs_of(i, j);
             }
         }
         any
@@ -3899,10 +3922,10 @@ impl CandidateCache {
         bodies: &[Body],
         bvhs: &mut [TriangleBvh],
         pairs_of: impl Fn(usize, usize) -> bool,
+        entries: bool,
     ) {
         let n = bodies.len();
-        let to_list =
-            |i: usize, j: usize| self.listed[i * self.slots + j] == NOT_LISTED && pairs_of(i, j);
+        let to_list = |i: usize, j: usize| self.to_list((i, j), entries) && pairs_of(i, j);
         for (k, (body, bvh)) in bodies.iter().zip(bvhs.iter_mut()).enumerate() {
             let wanted = (0..n).any(|o| to_list(k, o) || to_list(o, k));
             if !wanted {
@@ -3938,10 +3961,18 @@ impl CandidateCache {
     /// New lists into the other of the two buffers: the pairs that hold, copied; the others that
     /// `pairs_of` asks for, listed (each pair of bodies' vertex and edge entries, and once per
     /// pair, `i < j`, the net's triangle pairs).
+    ///
+    /// The entries are the response's, which reads them once a tick, before the net: with
+    /// `entries` false (the net's calls) a pair is listed without them (its ranges empty, its
+    /// entries due), and the response's next call lists them, from the same references and
+    /// hierarchies fitted to them (a pair whose body took a new reference since is listed whole
+    /// again), so the same entries in the same place of the list. Where the response's pushes
+    /// take a body out of its slack, its pairs' entries were listed twice in the tick, the second
+    /// time for nothing: in the laparoscopy scene, most of its dearest ticks' cost.
     fn relist(
         &mut self,
         bodies: &[Body],
-        pairs_of: impl Fn(usize, usize) -> bool,
+        (pairs_of, entries): (impl Fn(usize, usize) -> bool, bool),
         bvhs: &mut [TriangleBvh],
         (near_triangles, found): (&mut Vec<u32>, &mut Vec<u32>),
         counters: &mut BodyContactCounters,
@@ -3973,49 +4004,73 @@ impl CandidateCache {
         for (i, body) in bodies.iter().enumerate() {
             for (j, body_j) in bodies.iter().enumerate() {
                 let pair = i * slots + j;
+                let due = entries && self.entries_due[pair] && pairs_of(i, j);
                 if self.listed[pair] == LISTED {
-                    let mut ranges = self.ranges[pair];
-                    for range in &mut ranges {
-                        let start = next.len() as u32;
-                        next.extend_from_slice(&used[range.0 as usize..range.1 as usize]);
-                        *range = (start, next.len() as u32);
+                    if !due {
+                        let mut ranges = self.ranges[pair];
+                        for range in &mut ranges {
+                            let start = next.len() as u32;
+                            next.extend_from_slice(&used[range.0 as usize..range.1 as usize]);
+                            *range = (start, next.len() as u32);
+                        }
+                        self.ranges[pair] = ranges;
                     }
-                    self.ranges[pair] = ranges;
                     let range = self.pair_ranges[pair];
                     let start = next_pairs.len() as u32;
                     next_pairs.extend_from_slice(&used_pairs[range.0 as usize..range.1 as usize]);
                     next_gaps.extend_from_slice(&used_gaps[range.0 as usize..range.1 as usize]);
                     self.pair_ranges[pair] = (start, next_pairs.len() as u32);
-                    continue;
+                    if !due {
+                        continue;
+                    }
                 }
                 if !pairs_of(i, j) {
                     continue;
                 }
-                let (lower_i, upper_i) =
-                    reference_boxes(self.reference[i], &self.lower[i], &self.upper[i], body);
-                let (lower_j, upper_j) =
-                    reference_boxes(self.reference[j], &self.lower[j], &self.upper[j], body_j);
-                let mut complete = list_pair(
-                    (i, j, body),
-                    (
-                        (lower_i, upper_i),
-                        OtherReference {
-                            triangles: &body_j.surface.triangles,
-                            lower: lower_j,
-                            upper: upper_j,
-                            margin: LIST_MARGIN_PER_SLACK * self.slack[j],
-                        },
-                    ),
-                    bvhs,
-                    // A vertex's (edge's) box grown by the skin and its body's margin, against
-                    // triangle boxes grown by theirs. (The skin with the margin of the cheap
-                    // tests, which let an edge through to be counted up to that far: listed with
-                    // no slack, a side 1e-6 of the skin beyond it went uncounted.)
-                    CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN) + LIST_MARGIN_PER_SLACK * self.slack[i],
-                    (near_triangles, found),
-                    next,
-                    &mut self.ranges[pair],
-                );
+                // The response's entries, or (in the net's calls) their ranges left empty.
+                let mut complete = true;
+                if entries {
+                    let (lower_i, upper_i) =
+                        reference_boxes(self.reference[i], &self.lower[i], &self.upper[i], body);
+                    let (lower_j, upper_j) =
+                        reference_boxes(self.reference[j], &self.lower[j], &self.upper[j], body_j);
+                    complete &= list_pair(
+                        (i, j, body),
+                        (
+                            (lower_i, upper_i),
+                            OtherReference {
+                                triangles: &body_j.surface.triangles,
+                                lower: lower_j,
+                                upper: upper_j,
+                                margin: LIST_MARGIN_PER_SLACK * self.slack[j],
+                            },
+                        ),
+                        bvhs,
+                        // A vertex's (edge's) box grown by the skin and its body's margin,
+                        // against triangle boxes grown by theirs. (The skin with the margin of
+                        // the cheap tests, which let an edge through to be counted up to that
+                        // far: listed with no slack, a side 1e-6 of the skin beyond it went
+                        // uncounted.)
+                        CONTACT_SKIN * (1.0 + EARLY_OUT_MARGIN)
+                            + LIST_MARGIN_PER_SLACK * self.slack[i],
+                        (near_triangles, found),
+                        next,
+                        &mut self.ranges[pair],
+                    );
+                } else {
+                    let at = next.len() as u32;
+                    self.ranges[pair] = [(at, at); 2];
+                }
+                self.entries_due[pair] = !entries;
+                counters.listed_pairs += 1;
+                if due {
+                    // Only the entries were due: the triangle pairs were copied above.
+                    if !complete {
+                        self.listed[pair] = LISTED_IN_PART;
+                        counters.overflows += 1;
+                    }
+                    continue;
+                }
                 // The net's triangle pairs, once per pair of bodies (i < j).
                 let start = next_pairs.len() as u32;
                 if i < j {
@@ -4026,7 +4081,6 @@ impl CandidateCache {
                 next_gaps.resize(next_pairs.len(), f64::NAN);
                 self.pair_ranges[pair] = (start, next_pairs.len() as u32);
                 self.least_gaps[pair] = (f64::NAN, 0);
-                counters.listed_pairs += 1;
                 // Bodies with no reference are listed again next tick.
                 self.listed[pair] = if !complete {
                     LISTED_IN_PART
