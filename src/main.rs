@@ -377,6 +377,12 @@ fn run(
     let mut world = World::from_scene(&scene);
     warn_of_crossings(&world, "warning: ");
     let ticks = (duration / world.params.dt).round() as u64;
+    if ticks == 0 && duration > 0.0 {
+        eprintln!(
+            "warning: --duration {duration} s is less than half a tick (dt {} s): no tick is run",
+            world.params.dt
+        );
+    }
     let mut out = match trace {
         Some(p) => {
             let mut w = create(p)?;

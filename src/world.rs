@@ -69,6 +69,8 @@ pub struct Systems {
     pub tool_faces: bool,
     /// Two bodies or more: broad phase and continuous detection between their surfaces.
     pub body_contact: bool,
+    /// Some body has `self_contact` on: its surface against itself (within the body-contact stage).
+    pub self_contact: bool,
     /// Some body refines at tool contact.
     pub subdivision: bool,
     /// Some body can be cut and some tool is a blade.
@@ -99,6 +101,7 @@ impl Systems {
             (self.tool_faces, "tool_faces"),
             (self.body_contact, "body_broad_phase"),
             (self.body_contact, "body_ccd"),
+            (self.self_contact, "self_contact"),
             (self.subdivision, "subdivision"),
             (self.cutting, "cutting"),
             (self.tearing, "tearing"),
@@ -661,6 +664,7 @@ impl World {
                 && !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_none()),
             body_contact: body_contact_needed(&self.bodies),
+            self_contact: self.bodies.iter().any(|b| b.params.self_contact_on()),
             subdivision: !self.tools.is_empty()
                 && self.bodies.iter().any(|b| b.params.subdivision.is_some()),
             cutting: self

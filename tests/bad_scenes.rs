@@ -486,3 +486,105 @@ fn a_key_given_twice_is_named() {
         "bad.toml:2:39: duplicate key `radius` (a key may be given once in a table)"
     );
 }
+
+#[test]
+fn an_array_longer_than_its_key_takes_is_an_error_not_cut_short() {
+    // Found by a reader's scenes: serde's arrays took the first three numbers of
+    // `position = [0, 0, 0, 1]` and passed over the rest, and the scene was valid.
+    let cases = [
+        (
+            format!("{BODY}position = [0.0, 0.0, 0.0, 1.0]\n"),
+            "bad.toml:4:12: invalid length 4, expected an array of length 3",
+        ),
+        (
+            format!("{BODY}orientation = [1.0, 0.0, 0.0, 0.0, 0.0]\n"),
+            "bad.toml:4:15: invalid length 5, expected an array of length 4",
+        ),
+        (
+            "[world]\ngravity = [0.0, 0.0, -9.81, 5.0]\n".to_string(),
+            "bad.toml:2:11: invalid length 4, expected an array of length 3",
+        ),
+        (
+            "[[obstacle]]\nplane = { normal = [0.0, 0.0, 1.0, 7.0] }\n".to_string(),
+            "bad.toml:2:20: invalid length 4, expected an array of length 3",
+        ),
+        (
+            "[[body]]\nmesh = { ellipsoid = { radii = [0.1, 0.1, 0.1, 0.1] } }\n".to_string(),
+            "bad.toml:2:32: invalid length 4, expected an array of length 3",
+        ),
+        (
+            "[[tool]]\nshape = { sphere = { radius = 0.004 } }\n\
+             script = [ { t = 0.0, position = [0.0, 0.0, 0.3, 1.0] } ]\n"
+                .to_string(),
+            "bad.toml:3:34: invalid length 4, expected an array of length 3",
+        ),
+        (
+            "[[body]]\nmesh = { icosphere = { radius = 0.05 }, scale = [0.1, 0.1, 0.1, 0.1] }\n"
+                .to_string(),
+            "bad.toml:2:49: expected a number > 0 or three numbers > 0 (`[sx, sy, sz]`) for `scale`",
+        ),
+        (
+            "[[body]]\nmesh = { box = { size = [0.1, 0.1, 0.1], subdivisions = [2, 2, 2, 2] } }\n"
+                .to_string(),
+            "bad.toml:2:57: expected a whole number 0…100 or three of them (`[nx, ny, nz]`) for \
+             `subdivisions`",
+        ),
+    ];
+    for (text, message) in cases {
+        assert_eq!(error_of(&text), message, "{text}");
+    }
+    // The right lengths are read as before.
+    let scene = parse_scene(
+        &format!("{BODY}position = [0.0, 0.0, 0.5]\norientation = [1.0, 0.0, 0.0, 0.0]\n"),
+        "good.toml",
+        &common::repo_root(),
+    )
+    .expect("valid");
+    assert_eq!(scene.bodies[0].placement.position_in_world.z, 0.5);
+}
+
+/// Messages a reader writing scenes from the README found unclear (2026-12-07), each as it reads
+/// now.
+#[test]
+fn messages_found_unclear_by_a_reader_say_what_is_wrong() {
+    // Bytes that are not UTF-8: named at the first bad byte (there was no place at all).
+    let dir = obj_dir("not-utf8", "");
+    let path = dir.join("bad.toml");
+    std::fs::write(&path, b"[world]\ndt = \xff0.001\n").unwrap();
+    let e = palpa::scene::load_scene(&path).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}:2:6: byte 13 (0xff) is not UTF-8 text: a scene file is UTF-8 TOML",
+            path.display()
+        )
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    // An attachment in a scene with no bodies (was "expected one of " and nothing).
+    assert_eq!(
+        error_of("[[attachment]]\nbody = \"zzz\"\nat = [0.0, 0.0, 0.0]\nradius = 0.01\n"),
+        "bad.toml:2:8: `body` of attachment `attachment0` names no body: found \"zzz\", the scene \
+         has no bodies"
+    );
+    // One number for a box's subdivisions, told as written (was "found [101, 101, 101]").
+    assert_eq!(
+        error_of("[[body]]\nmesh = { box = { size = [0.1, 0.1, 0.1], subdivisions = 101 } }\n"),
+        "bad.toml:2:57: `subdivisions` must be at most 100 (per axis), found 101"
+    );
+    // A degenerate triangle naming a merged vertex twice notes it once, with its figures short.
+    let dir = obj_dir(
+        "merged-twice",
+        "v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 0 0 0.02\nv 0 0 0\n\
+         f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\nf 5 1 2\n",
+    );
+    assert_eq!(
+        error_in("[[body]]\nmesh = { obj = \"m.obj\" }\n", &dir),
+        "bad.toml:2:8: mesh (obj m.obj): triangle 4 (vertices 0, 0, 1, 0-based) is degenerate: \
+         area 0.000e0 m² for a longest edge of 2.000e-2 m; vertex 0 also stands for the file's 4 \
+         (vertices at one position are merged into the first)"
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+    // A radius that overflows the mesh is named in short (was 300 digits).
+    let e = error_of("[[body]]\nmesh = { icosphere = { radius = 1e300 } }\n");
+    assert!(e.contains("(icosphere r=1e300 s=2)"), "{e}");
+}

@@ -64,6 +64,32 @@ fn check_lists_systems_and_the_stability_margin() {
         "{t}"
     );
     assert!(t.contains(", feedback, tool_faces, cutting\n"), "{t}");
+    // Self-contact is named where a body has it on (it was not, found by a reader).
+    let t = text(&palpa(&["check", "scenes/self_fold.toml"]));
+    assert!(
+        t.contains(", body_broad_phase, body_ccd, self_contact"),
+        "{t}"
+    );
+    let t = text(&palpa(&["check", "scenes/two_organs.toml"]));
+    assert!(t.contains("body_ccd") && !t.contains("self_contact"), "{t}");
+}
+
+#[test]
+fn a_run_shorter_than_half_a_tick_says_that_it_runs_none() {
+    let out = palpa(&["run", "--duration", "0.0004"]);
+    let t = text(&out);
+    assert!(out.status.success(), "{t}");
+    let warning = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        warning.starts_with(
+            "warning: --duration 0.0004 s is less than half a tick (dt 0.001 s): no tick is run\n"
+        ),
+        "{t}"
+    );
+    assert!(t.starts_with("<default scene>: 0 ticks"), "{t}");
+    let t = text(&palpa(&["run", "--duration", "0.0006"]));
+    assert!(!t.contains("warning"), "{t}");
+    assert!(t.contains("<default scene>: 1 ticks"), "{t}");
 }
 
 #[test]

@@ -38,7 +38,7 @@ pub enum MeshError {
     },
     /// A triangle has (almost) no area: repeated or collinear corners.
     #[error(
-        "triangle {triangle} (vertices {a}, {b}, {c}, 0-based) is degenerate: area {area:e} m² for a longest edge of {longest:e} m"
+        "triangle {triangle} (vertices {a}, {b}, {c}, 0-based) is degenerate: area {area:.3e} m² for a longest edge of {longest:.3e} m"
     )]
     Degenerate {
         /// Offending triangle.
@@ -692,7 +692,13 @@ impl MergedVertices {
     /// that the numbers can be found in the file's faces (empty when none of them was merged).
     pub fn note_for(&self, error: &MeshError) -> String {
         let mut note = String::new();
+        let mut named = Vec::new();
         for vertex in error.vertices() {
+            // (A degenerate triangle may name one vertex twice: noted once.)
+            if named.contains(&vertex) {
+                continue;
+            }
+            named.push(vertex);
             if let Some(others) = self.0.get(&vertex) {
                 let others: Vec<String> = others.iter().map(u32::to_string).collect();
                 note += &format!(

@@ -165,9 +165,26 @@ pub enum SceneError {
 
 /// Reads and validates a scene file; meshes are resolved relative to its directory.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
         path: path.display().to_string(),
         source,
+    })?;
+    // Text that is not UTF-8 is named at its first bad byte, as any other error.
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        // (The bytes before it are UTF-8.)
+        let before = std::str::from_utf8(valid).unwrap_or_default();
+        let line_start = before.rfind('\n').map_or(0, |k| k + 1);
+        SceneError::At {
+            path: path.display().to_string(),
+            line: before.matches('\n').count() + 1,
+            column: before[line_start..].chars().count() + 1,
+            message: format!(
+                "byte {} (0x{:02x}) is not UTF-8 text: a scene file is UTF-8 TOML",
+                valid.len(),
+                e.as_bytes()[valid.len()]
+            ),
+        }
     })?;
     let dir = path.parent().unwrap_or(Path::new("."));
     parse_scene(&text, &path.display().to_string(), dir)
@@ -976,7 +993,7 @@ impl Ctx<'_> {
             budget(icosphere_vertices(subdivisions))?;
             (
                 mesh::icosphere(radius, subdivisions),
-                format!("icosphere r={radius} s={subdivisions}"),
+                format!("icosphere r={radius:?} s={subdivisions}"),
             )
         } else if let Some(ell) = &m.ellipsoid {
             let radii = self.positive_vector(&ell.get_ref().radii, "radii")?;
@@ -1070,9 +1087,14 @@ impl Ctx<'_> {
                     BoxSubdivisions::PerAxis(a) => *a,
                 };
                 if n.iter().any(|&k| k > 100) {
+                    // (As written: one number, or three.)
+                    let found = match v.get_ref() {
+                        BoxSubdivisions::Uniform(n) => format!("{n}"),
+                        BoxSubdivisions::PerAxis(a) => format!("{a:?}"),
+                    };
                     return Err(self.error(
                         v.span(),
-                        format!("`subdivisions` must be at most 100 (per axis), found {n:?}"),
+                        format!("`subdivisions` must be at most 100 (per axis), found {found}"),
                     ));
                 }
                 n
@@ -1122,7 +1144,7 @@ impl Ctx<'_> {
         budget((rings as usize) * around as usize)?;
         Ok((
             mesh::capsule(radius, length, around),
-            format!("capsule r={radius} l={length} around={around}"),
+            format!("capsule r={radius:?} l={length:?} around={around}"),
         ))
     }
 
@@ -1206,10 +1228,15 @@ impl Ctx<'_> {
                     .map(|b| format!("`{}`", b.name))
                     .collect::<Vec<_>>()
                     .join(", ");
+                let expected = if bodies.is_empty() {
+                    "the scene has no bodies".to_string()
+                } else {
+                    format!("expected one of {names}")
+                };
                 self.error(
                     value.span(),
                     format!(
-                        "`{key}` of attachment `{name}` names no body: found {:?}, expected one of {names}",
+                        "`{key}` of attachment `{name}` names no body: found {:?}, {expected}",
                         value.get_ref(),
                     ),
                 )

@@ -4,6 +4,73 @@
 use serde::Deserialize;
 use toml::Spanned;
 
+/// Arrays of exactly `N` values. (serde's arrays take the first `N` of a longer TOML array and
+/// pass over the rest: `position = [0, 0, 0, 1]` was read as `[0, 0, 0]`.)
+mod exact {
+    use serde::de::{Deserialize, Deserializer, Error, IgnoredAny, SeqAccess, Visitor};
+    use std::marker::PhantomData;
+    use toml::Spanned;
+
+    struct Exact<T, const N: usize>([T; N]);
+
+    impl<'de, T: Deserialize<'de> + Copy + Default, const N: usize> Deserialize<'de> for Exact<T, N> {
+        fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            struct Values<T, const N: usize>(PhantomData<T>);
+            impl<'de, T: Deserialize<'de> + Copy + Default, const N: usize> Visitor<'de> for Values<T, N> {
+                type Value = Exact<T, N>;
+                fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                    write!(f, "an array of length {N}")
+                }
+                fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+                    let mut values = [T::default(); N];
+                    for (k, value) in values.iter_mut().enumerate() {
+                        *value = seq
+                            .next_element()?
+                            .ok_or_else(|| A::Error::invalid_length(k, &self))?;
+                    }
+                    // Count what is left, for the message (nothing is kept).
+                    let mut length = N;
+                    while seq.next_element::<IgnoredAny>()?.is_some() {
+                        length += 1;
+                    }
+                    if length != N {
+                        return Err(A::Error::invalid_length(length, &self));
+                    }
+                    Ok(Exact(values))
+                }
+            }
+            deserializer.deserialize_seq(Values::<T, N>(PhantomData))
+        }
+    }
+
+    pub(super) fn array<'de, D, T, const N: usize>(deserializer: D) -> Result<[T; N], D::Error>
+    where
+        D: Deserializer<'de>,
+        T: Deserialize<'de> + Copy + Default,
+    {
+        Ok(Exact::<T, N>::deserialize(deserializer)?.0)
+    }
+
+    pub(super) fn spanned<'de, D, const N: usize>(
+        deserializer: D,
+    ) -> Result<Spanned<[f64; N]>, D::Error>
+    where
+        D: Deserializer<'de>,
+    {
+        let value = Spanned::<Exact<f64, N>>::deserialize(deserializer)?;
+        Ok(Spanned::new(value.span(), value.into_inner().0))
+    }
+
+    pub(super) fn some_spanned<'de, D, const N: usize>(
+        deserializer: D,
+    ) -> Result<Option<Spanned<[f64; N]>>, D::Error>
+    where
+        D: Deserializer<'de>,
+    {
+        spanned(deserializer).map(Some)
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct SceneFile {
@@ -23,6 +90,7 @@ pub(super) struct SceneFile {
 pub(super) struct AttachmentSection {
     pub name: Option<Spanned<String>>,
     pub body: Option<Spanned<String>>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub at: Option<Spanned<[f64; 3]>>,
     pub radius: Option<Spanned<f64>>,
     pub to: Option<Spanned<String>>,
@@ -33,6 +101,7 @@ pub(super) struct AttachmentSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct WorldSection {
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub gravity: Option<Spanned<[f64; 3]>>,
     pub dt: Option<Spanned<f64>>,
     pub air_viscosity: Option<Spanned<f64>>,
@@ -46,9 +115,13 @@ pub(super) struct WorldSection {
 pub(super) struct BodySection {
     pub name: Option<Spanned<String>>,
     pub mesh: Option<Spanned<MeshSection>>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub position: Option<Spanned<[f64; 3]>>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub orientation: Option<Spanned<[f64; 4]>>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub velocity: Option<Spanned<[f64; 3]>>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub angular_velocity: Option<Spanned<[f64; 3]>>,
     pub surface_mass: Option<Spanned<f64>>,
     pub rigid_mass: Option<Spanned<f64>>,
@@ -154,7 +227,7 @@ pub(super) struct CapsuleMeshSection {
 )]
 pub(super) enum ScaleValue {
     Uniform(f64),
-    PerAxis([f64; 3]),
+    PerAxis(#[serde(deserialize_with = "exact::array")] [f64; 3]),
 }
 
 #[derive(Deserialize)]
@@ -167,6 +240,7 @@ pub(super) struct IcosphereSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct EllipsoidSection {
+    #[serde(deserialize_with = "exact::spanned")]
     pub radii: Spanned<[f64; 3]>,
     pub subdivisions: Option<Spanned<u32>>,
 }
@@ -174,6 +248,7 @@ pub(super) struct EllipsoidSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct BoxMeshSection {
+    #[serde(deserialize_with = "exact::spanned")]
     pub size: Spanned<[f64; 3]>,
     pub subdivisions: Option<Spanned<BoxSubdivisions>>,
 }
@@ -185,7 +260,7 @@ pub(super) struct BoxMeshSection {
 )]
 pub(super) enum BoxSubdivisions {
     Uniform(u32),
-    PerAxis([u32; 3]),
+    PerAxis(#[serde(deserialize_with = "exact::array")] [u32; 3]),
 }
 
 #[derive(Deserialize)]
@@ -202,15 +277,20 @@ pub(super) struct ObstacleSection {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct PlaneSection {
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub point: Option<Spanned<[f64; 3]>>,
+    #[serde(deserialize_with = "exact::spanned")]
     pub normal: Spanned<[f64; 3]>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct BoxObstacleSection {
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub center: Option<Spanned<[f64; 3]>>,
+    #[serde(deserialize_with = "exact::spanned")]
     pub size: Spanned<[f64; 3]>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub orientation: Option<Spanned<[f64; 4]>>,
 }
 
@@ -268,7 +348,9 @@ pub(super) struct BladeSection {
 #[serde(deny_unknown_fields)]
 pub(super) struct KeyframeSection {
     pub t: Spanned<f64>,
+    #[serde(deserialize_with = "exact::spanned")]
     pub position: Spanned<[f64; 3]>,
+    #[serde(default, deserialize_with = "exact::some_spanned")]
     pub orientation: Option<Spanned<[f64; 4]>>,
     pub jaw: Option<Spanned<f64>>,
 }
