@@ -468,13 +468,24 @@ fn run(
         );
         let guard = &world.guards[b];
         if guard.events > 0 {
+            let cause = guard.last_cause.expect("an event has a cause");
             println!(
-                "  {}: divergence guard acted {} times (last cause: {:?}) — the {} integrator is unstable here; \
-                 `palpa check` explains why",
+                "  {}: divergence guard acted {} times (last cause: {cause:?}: {}) — {}",
                 body.name,
                 guard.events,
-                guard.last_cause.expect("an event has a cause"),
-                world.integrator_of(b).name()
+                guard_cause_text(cause),
+                if past_explicit_limit(&world, b) {
+                    format!(
+                        "the {} integrator is unstable here; `palpa check` explains why",
+                        world.integrator_of(b).name()
+                    )
+                } else {
+                    "not the integrator's stability (`palpa check` finds the body stable at dt): \
+                     a load beyond the model's range, such as links too soft for the rigid \
+                     component's weight, a tool with no force limit crushing the body, or bodies \
+                     squeezed together"
+                        .to_string()
+                }
             );
         }
     }
@@ -1032,6 +1043,52 @@ fn warn_of_crossings(world: &World, prefix: &str) {
     }
 }
 
+/// What the divergence guard found wrong, in words.
+fn guard_cause_text(cause: palpa::dynamics::guard::GuardCause) -> &'static str {
+    use palpa::dynamics::guard::GuardCause as C;
+    match cause {
+        C::NonFinite => "a value became NaN or infinite",
+        C::Speed => "a node moved faster than 100 m/s",
+        C::Stretch => "a node went further than five body sizes from its rigid component",
+        C::Energy => "the energy grew past what gravity and the tools explain",
+    }
+}
+
+/// Whether body `b` is stepped explicitly past the stability limit of its step (what `palpa
+/// check` calls UNSTABLE or warns of): a node or rigid component under the paper's scheme past
+/// its limit at dt, or under the multi-rate integrator past it even at its finest sub-step.
+fn past_explicit_limit(world: &World, b: usize) -> bool {
+    use palpa::dynamics::Integrator as I;
+    let body = &world.bodies[b];
+    let m = palpa::dynamics::stability::symplectic_margin(body, world.params.dt);
+    match world.integrator_of(b) {
+        I::Symplectic => m.margin < 0.0 || (!body.rigid.fixed && m.rigid_margin < 0.0),
+        I::Multirate => substeps_fall_short(world, b).is_some(),
+        I::Implicit => false,
+    }
+}
+
+/// For a body the multi-rate integrator sub-steps as finely as it can
+/// ([`palpa::dynamics::multirate::MAX_LEVEL`] halvings) with its worst node still past the limit
+/// at that sub-step: that node's margin there.
+fn substeps_fall_short(
+    world: &World,
+    b: usize,
+) -> Option<palpa::dynamics::stability::StabilityMargin> {
+    let (substeps, fast) = world.substeps_of(b);
+    if world.integrator_of(b) != palpa::dynamics::Integrator::Multirate
+        || fast == 0
+        || substeps < 1 << palpa::dynamics::multirate::MAX_LEVEL
+    {
+        return None;
+    }
+    let m = palpa::dynamics::stability::symplectic_margin(
+        &world.bodies[b],
+        world.params.dt / f64::from(substeps),
+    );
+    (m.margin < 0.0).then_some(m)
+}
+
 /// `palpa check`'s verdict on a node or rigid component stepped explicitly past its limit.
 const EXPLICIT_PAST_LIMIT: &str =
     "UNSTABLE: stepped explicitly past its limit (a bound with room to spare: the guard may act)";
@@ -1143,8 +1200,16 @@ fn check(path: Option<&Path>) -> Result<()> {
         );
         // Past the explicit limit is a defect only where the body's integrator steps the node
         // explicitly at dt.
+        let short = substeps_fall_short(&world, b);
+        unstable |= short.is_some();
         let node_verdict = match integrator {
             _ if ok => "stable".to_string(),
+            palpa::dynamics::Integrator::Multirate if let Some(s) = short => format!(
+                "UNSTABLE: past the explicit limit at dt, and still past it sub-stepped ×{substeps}, \
+                 the most the multirate integrator takes (ω·Δt = {:.3} there, limit {:.3}: the guard \
+                 may act)",
+                s.omega_dt, s.limit
+            ),
             palpa::dynamics::Integrator::Multirate if fast > 0 => format!(
                 "past the explicit limit at dt: sub-stepped (×{substeps}) by the multirate integrator"
             ),
@@ -1196,7 +1261,8 @@ fn check(path: Option<&Path>) -> Result<()> {
         println!(
             "warning: a node or a rigid component is past the stability limit of the explicit scheme and this\n\
              \x20 body uses it: the divergence guard may keep restoring it (the bound is a safe one: a body a\n\
-             \x20 little past it may still run). Use integrator = \"multirate\" (the default) or \"implicit\".\n\
+             \x20 little past it may still run). Use integrator = \"implicit\", or \"multirate\" (the default)\n\
+             \x20 where its sub-steps reach the limit.\n\
              \x20 ω² ≤ (k_link + 2 Σ k_edges) / m: more nodes for the same surface_mass means lighter nodes and\n\
              \x20 higher frequencies (the paper's trap). Lower dt, raise surface_mass, or lower surface_stiffness,\n\
              \x20 link_stiffness or the damping (which also tightens the limit: ω·Δt ≤ √(4 − 2 Δt c/m))."

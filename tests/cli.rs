@@ -235,6 +235,12 @@ fn check_warns_before_a_scene_diverges() {
         "{}",
         text(&out)
     );
+    // Blamed on the explicit scheme, which `check` found past its limit.
+    assert!(
+        text(&out).contains("the symplectic integrator is unstable here"),
+        "{}",
+        text(&out)
+    );
     assert!(
         text(&out).contains("warning: the divergence guard acted on "),
         "{}",
@@ -384,4 +390,58 @@ fn numeric_options_refuse_zero_negative_and_non_finite_values() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
         assert!(t.contains("must be a "), "{t}");
     }
+}
+
+#[test]
+fn the_guard_is_blamed_on_the_integrator_only_where_check_finds_it_past_its_limit() {
+    // Found by a reader: every guard event was put down to the integrator's stability, also
+    // where `check` finds the body stable, and `check` called a body sub-stepped as far as the
+    // multi-rate integrator goes, and still past its limit there, merely sub-stepped.
+    let dir = std::env::temp_dir().join(format!("palpa-cli-guard-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A rigid component of a tonne on the default links: it sinks through its nodes, which rest
+    // on the table (stable at dt; the guard finds the links stretched).
+    let heavy = dir.join("heavy.toml");
+    std::fs::write(
+        &heavy,
+        "[[body]]\nname = \"a\"\nmesh = { icosphere = { radius = 0.03, subdivisions = 1 } }\n\
+         position = [0.0, 0.0, 0.05]\nrigid_mass = 1e3\n[[obstacle]]\nplane = { normal = [0.0, 0.0, 1.0] }\n",
+    )
+    .unwrap();
+    let t = text(&palpa(&["check", heavy.to_str().unwrap()]));
+    assert!(!t.contains("UNSTABLE"), "{t}");
+    let out = palpa(&["run", heavy.to_str().unwrap(), "--duration", "1"]);
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(3), "{t}");
+    assert!(
+        t.contains(
+            "(last cause: Stretch: a node went further than five body sizes from its rigid \
+             component) — not the integrator's stability"
+        ),
+        "{t}"
+    );
+    // Nodes of 1e-7 kg under the default damping, falling: past the limit at 1/4096 of the step
+    // too.
+    let light = dir.join("light.toml");
+    std::fs::write(
+        &light,
+        "[[body]]\nname = \"ico\"\n\
+         mesh = { icosphere = { radius = 0.0005, subdivisions = 0 } }\nsurface_mass = 1e-7\n\
+         rigid_mass = 1e-7\nsurface_stiffness = 0.1\nlink_stiffness = 0.1\n",
+    )
+    .unwrap();
+    let t = text(&palpa(&["check", light.to_str().unwrap()]));
+    assert!(
+        t.contains("UNSTABLE: past the explicit limit at dt, and still past it sub-stepped ×4096"),
+        "{t}"
+    );
+    assert!(t.contains("warning: a node"), "{t}");
+    let out = palpa(&["run", light.to_str().unwrap(), "--duration", "0.05"]);
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(3), "{t}");
+    assert!(
+        t.contains("the multirate integrator is unstable here"),
+        "{t}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
