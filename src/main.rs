@@ -1004,6 +1004,44 @@ fn crossing_lines(world: &World) -> Vec<String> {
         .collect()
 }
 
+/// A warning for each free body that gravity alone moves by more than a tenth of its thinnest
+/// extent in one step, in a scene with contact (obstacles, or other bodies): contact answers each
+/// node's trajectory over the step, and where every node's would end inside what it rests on, it
+/// stops them all where they started (a box resting on a table at a 0.1 s step never sags; a ball
+/// dropped onto it hangs in the air above it).
+fn coarse_step_lines(world: &World) -> Vec<String> {
+    let dt = world.params.dt;
+    let fall = world.params.gravity.norm() * dt * dt;
+    let contact = world.systems().obstacle_contact || world.bodies.len() >= 2;
+    if !contact || fall == 0.0 {
+        return Vec::new();
+    }
+    world
+        .bodies
+        .iter()
+        .filter(|b| !b.rigid.fixed)
+        .filter_map(|b| {
+            let positions = &b.surface.position_in_world;
+            let (mut lo, mut hi) = (positions.first()?.to_owned(), positions.first()?.to_owned());
+            for p in positions {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
+            let thinnest = (hi - lo).min();
+            (fall > 0.1 * thinnest).then(|| {
+                format!(
+                    "body `{}`: gravity alone moves it {:.4} m in one step of {dt} s, more than a tenth \
+                     of its thinnest extent ({:.4} m): contact stops a node whose trajectory over the \
+                     step ends inside what it meets, and at this step it may stop the whole body where \
+                     it started (resting bodies that never sag, a body hanging above what it falls \
+                     onto) — lower dt",
+                    b.name, fall, thinnest
+                )
+            })
+        })
+        .collect()
+}
+
 /// An obstacle in the scene's words: where it is and which way is out.
 fn describe_obstacle(shape: &palpa::collision::obstacle::ObstacleShape) -> String {
     use palpa::collision::obstacle::ObstacleShape;
@@ -1038,7 +1076,10 @@ fn describe_obstacle(shape: &palpa::collision::obstacle::ObstacleShape) -> Strin
 
 /// Prints [`crossing_lines`] on the standard error, each after `prefix`.
 fn warn_of_crossings(world: &World, prefix: &str) {
-    for line in crossing_lines(world) {
+    for line in crossing_lines(world)
+        .into_iter()
+        .chain(coarse_step_lines(world))
+    {
         eprintln!("{prefix}{line}");
     }
 }
@@ -1151,7 +1192,10 @@ fn check(path: Option<&Path>) -> Result<()> {
             a.to.map_or("the world", |o| scene.bodies[o].name.as_str()),
         );
     }
-    for line in crossing_lines(&world) {
+    for line in crossing_lines(&world)
+        .into_iter()
+        .chain(coarse_step_lines(&world))
+    {
         println!("  warning: {line}");
     }
     for spec in &scene.bodies {
