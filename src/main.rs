@@ -1085,13 +1085,15 @@ fn warn_of_crossings(world: &World, prefix: &str) {
 }
 
 /// What the divergence guard found wrong, in words.
-fn guard_cause_text(cause: palpa::dynamics::guard::GuardCause) -> &'static str {
-    use palpa::dynamics::guard::GuardCause as C;
+fn guard_cause_text(cause: palpa::dynamics::guard::GuardCause) -> String {
+    use palpa::dynamics::guard::{GuardCause as C, MAX_SPEED, MAX_STRETCH};
     match cause {
-        C::NonFinite => "a value became NaN or infinite",
-        C::Speed => "a node moved faster than 100 m/s",
-        C::Stretch => "a node went further than five body sizes from its rigid component",
-        C::Energy => "the energy grew past what gravity and the tools explain",
+        C::NonFinite => "a value became NaN or infinite".to_string(),
+        C::Speed => format!("a node moved faster than {MAX_SPEED} m/s"),
+        C::Stretch => {
+            format!("a node went further than {MAX_STRETCH} body sizes from its rigid component")
+        }
+        C::Energy => "the energy grew past what gravity and the tools explain".to_string(),
     }
 }
 

@@ -415,7 +415,7 @@ fn the_guard_is_blamed_on_the_integrator_only_where_check_finds_it_past_its_limi
     assert_eq!(out.status.code(), Some(3), "{t}");
     assert!(
         t.contains(
-            "(last cause: Stretch: a node went further than five body sizes from its rigid \
+            "(last cause: Stretch: a node went further than 5 body sizes from its rigid \
              component) — not the integrator's stability"
         ),
         "{t}"
