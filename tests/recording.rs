@@ -631,9 +631,16 @@ fn drive_plan(prefix: &str, plan: &[Plan]) -> Vec<u64> {
                     })
                     .unwrap();
                 let mut tick = 0;
+                // A pose that is not a number is answered with the rejection's flag (the echo
+                // keeps the last good pose's sequence number).
+                let rejected = position.iter().any(|x| !x.is_finite());
                 wait("answered", &mut || {
                     newest()
-                        .filter(|f| f.seq == seq)
+                        .filter(|f| {
+                            f.seq == seq
+                                || (rejected
+                                    && f.flags & palpa::ipc::payload::FEEDBACK_REJECTED != 0)
+                        })
                         .map(|f| tick = f.tick)
                         .is_some()
                 });
@@ -786,6 +793,38 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
         900
     );
     assert_summary_and_verify(&path, 800, 800);
+    std::fs::remove_file(&path).ok();
+}
+
+#[test]
+fn a_pose_rejected_while_paused_replays_bit_for_bit() {
+    // A pose that is not a number among those taken while paused (found by an integrator's client,
+    // 2026-12-07): the daemon flagged its rejection (8) on that paused answer only, and the first
+    // step after the resume carried no flag, where the replay applies the rejection recorded at
+    // that tick to that step — `--verify` failed there on `flags`. The rejection now flags the
+    // feedback of every answer up to and including the first step after it.
+    use palpa::ipc::payload::{CONTROL_PAUSE, CONTROL_RESUME};
+    let mut plan = press(300);
+    plan.push(Plan::Control(CONTROL_PAUSE));
+    plan.extend((301..=340u64).map(|seq| {
+        let x = if seq == 320 { f64::NAN } else { 0.004 };
+        Plan::Pose(seq, [x, 0.0, 0.055])
+    }));
+    plan.push(Plan::Control(CONTROL_RESUME));
+    plan.extend((341..=600u64).map(|seq| Plan::Pose(seq, [0.004, 0.0, 0.055])));
+    let (path, answered) = record_plan("pause-reject", &plan);
+    assert!(answered[300..340].iter().all(|&t| t == 300), "{answered:?}");
+    assert_eq!(answered[340], 301);
+    assert_eq!(
+        events_but_misses(&path),
+        [
+            (proto::event::Kind::Pause as i32, 300),
+            (proto::event::Kind::InputRejected as i32, 300),
+            (proto::event::Kind::Resume as i32, 300),
+            (proto::event::Kind::SessionEnd as i32, 560)
+        ]
+    );
+    assert_summary_and_verify(&path, 560, 560);
     std::fs::remove_file(&path).ok();
 }
 

@@ -61,7 +61,9 @@ pub struct ToolInputState {
     pub rejected: u64,
     /// Times the tool went stale.
     pub disconnects: u64,
-    /// The newest pose offered this tick was rejected.
+    /// A pose offered since the last step was rejected (cleared when a step's feedback is sent:
+    /// a rejection while the daemon is paused flags the first step after it, as a replay of the
+    /// recording does).
     pub rejected_this_tick: bool,
 }
 
@@ -76,7 +78,7 @@ impl ToolInputState {
         limits: &InputLimits,
     ) -> Result<(ToolPose, f64), Rejection> {
         let result = self.check(pose, tick, dt, limits);
-        self.rejected_this_tick = result.is_err();
+        self.rejected_this_tick |= result.is_err();
         match result {
             Ok(accepted) => {
                 self.last_good = Some(*pose);

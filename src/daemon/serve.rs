@@ -566,7 +566,6 @@ impl<'a> Daemon<'a> {
             {
                 newest = Some(*sample.payload());
             }
-            self.inputs[k].rejected_this_tick = false;
             if let Some(pose) = newest {
                 match self.inputs[k].offer(&pose, self.clock, self.dt, &self.options.limits) {
                     Ok((tool_pose, jaw)) => {
@@ -643,6 +642,7 @@ impl<'a> Daemon<'a> {
             }
             if stepped {
                 self.sink.feedback(tool_index, &payload);
+                self.inputs[k].rejected_this_tick = false;
             }
         }
     }
