@@ -1668,6 +1668,23 @@ impl World {
             }
             if guard.check(body, Some(energy)).is_some() {
                 counters.guard_events += 1;
+                // The tools let go of the restored nodes they touched, and take again those they
+                // still touch at the next tick: kept, a node a tool carried off (a tool that
+                // jumped through the organ in one tick, 40 cm, holding eight nodes 12 cm from
+                // it) was carried off again at every tick, and the body restored at every tick
+                // for as long as the tool stayed (found by an integrator's bridge, 2026-12-07).
+                // A grasp is let go when the restore failed again.
+                let again = guard.events_in_a_row() >= 2;
+                let mut released = false;
+                for contact in &mut body.surface.tool_contact {
+                    if contact.tool != crate::body::NO_TOOL && (contact.grasp.is_none() || again) {
+                        *contact = crate::contact::tool::ToolContact::default();
+                        released = true;
+                    }
+                }
+                if released {
+                    self.broad[b].held.invalidate();
+                }
                 // The restored shape may cross an obstacle the deformed one was resting on.
                 for x in &mut body.surface.position_in_world {
                     for o in &self.obstacles {

@@ -488,3 +488,57 @@ fn the_node_boxes_hold_every_free_trajectory_the_broad_phase_skips_by() {
     // The guard read the blocks at most of those ticks.
     assert!(total.maxima > 5_000, "{total:?}");
 }
+
+/// A probe that jumps 40 cm through an organ in one tick (an external pose accepted after the
+/// speed check held it back, or a script's jump) and stays beside it, 12 cm off: the nodes it
+/// swept up were carried off with it, the divergence guard restored the organ, and — the tool
+/// still holding them — did so again at every tick for as long as the probe stayed (1 500 times
+/// in 1.5 s, the probe feeling nothing with 8 contacts; found by an integrator's bridge,
+/// 2026-12-07). The guard's restore now makes the tools let go of the nodes: one event, then the
+/// organ rests and the probe, away from it, touches nothing.
+#[test]
+fn a_probe_jumping_through_an_organ_does_not_hold_it_restored_for_ever() {
+    let scene = common::scene(
+        r#"
+        [[body]]
+        name = "organ"
+        mesh = { ellipsoid = { radii = [0.05, 0.035, 0.02], subdivisions = 3 } }
+        position = [0.0, 0.0, 0.02]
+        [[obstacle]]
+        name = "table"
+        plane = { normal = [0.0, 0.0, 1.0] }
+        friction = 0.5
+        [[tool]]
+        name = "probe"
+        shape = { sphere = { radius = 0.005 } }
+        script = [
+          { t = 0.0, position = [-0.2, 0.0, 0.02] },
+          { t = 0.5, position = [-0.2, 0.0, 0.02] },
+          { t = 0.501, position = [0.2, 0.0, 0.02] },
+          { t = 2.0, position = [0.2, 0.0, 0.02] },
+        ]
+        "#,
+    );
+    let mut world = World::from_scene(&scene);
+    let mut swept = 0;
+    for tick in 0..2000 {
+        world.step();
+        if tick == 500 {
+            swept = world.tools[0].feedback.contacts;
+        }
+        if tick > 510 {
+            assert_eq!(
+                world.tools[0].feedback.contacts, 0,
+                "tick {tick}: the probe holds nodes"
+            );
+        }
+    }
+    assert!(swept > 0, "the jump swept up no node: the case is not made");
+    let events = world.guards[0].events;
+    assert!(events <= 2, "the guard acted {events} times");
+    assert!(
+        world.bodies[0].kinetic_energy() < 1e-6,
+        "{}",
+        world.bodies[0].kinetic_energy()
+    );
+}

@@ -407,6 +407,11 @@ impl Guard {
         }
     }
 
+    /// Events in a row up to this step (0 when the last step passed).
+    pub fn events_in_a_row(&self) -> u32 {
+        self.in_a_row
+    }
+
     fn diagnose(&mut self, body: &Body, energy: Option<f64>) -> Option<GuardCause> {
         // The pass the world took before the cut stage, or one now.
         let Measure {
