@@ -555,8 +555,13 @@ fn serve(args: ServeArgs) -> Result<()> {
         .map_err(|_| anyhow::anyhow!("the simulation thread panicked"))?
         .map_err(|e| anyhow::anyhow!("palpa serve: {e}"))?;
     println!(
-        "palpa serve: stopped after {} ticks: {} synchronicity misses, {} rejected inputs, {} disconnects, {} guard events, {} IPC errors, tick compute mean {:.1} µs, p99 {:.0} µs, max {:.1} µs",
+        "palpa serve: stopped after {} ticks{}: {} synchronicity misses, {} rejected inputs, {} disconnects, {} guard events, {} IPC errors, tick compute mean {:.1} µs, p99 {:.0} µs, max {:.1} µs",
         summary.ticks,
+        if summary.paused_ticks > 0 {
+            format!(" ({} of them paused)", summary.paused_ticks)
+        } else {
+            String::new()
+        },
         summary.synchronicity_misses,
         summary.rejected_inputs,
         summary.disconnects,

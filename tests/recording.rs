@@ -706,6 +706,12 @@ fn events_but_misses(path: &Path) -> Vec<(i32, u64)> {
 /// feedback tick.
 /// `name` names the file (`plan-NAME.mcap`) and the daemon's prefix, apart from the other tests'.
 fn record_plan(name: &str, plan: &[Plan]) -> (PathBuf, Vec<u64>) {
+    let (path, answered, _) = record_plan_printing(name, plan);
+    (path, answered)
+}
+
+/// [`record_plan`], with what the daemon printed.
+fn record_plan_printing(name: &str, plan: &[Plan]) -> (PathBuf, Vec<u64>, String) {
     let path = temp(&format!("plan-{name}.mcap"));
     let prefix = format!("plan{name}{}", std::process::id());
     let daemon = serve_recording(&prefix, &path, &["--lockstep"]);
@@ -713,7 +719,7 @@ fn record_plan(name: &str, plan: &[Plan]) -> (PathBuf, Vec<u64>) {
     common::sigterm(&daemon.0);
     let (status, text) = ended(daemon);
     assert!(status.success(), "{status}: {text}");
-    (path, answered)
+    (path, answered, text)
 }
 
 /// `palpa-replay --verify` passes on `path` with `ticks` ticks and `feedback` feedback messages.
@@ -774,7 +780,13 @@ fn a_session_paused_and_resumed_replays_bit_for_bit() {
         let k = (seq - 500) as f64 / 400.0;
         Plan::Pose(seq, [0.005 + 0.005 * k, 0.0, 0.05 - 0.01 * k])
     }));
-    let (path, answered) = record_plan("pause", &plan);
+    let (path, answered, printed) = record_plan_printing("pause", &plan);
+    // The closing line tells the paused ticks from the stepped ones (it counted them all as
+    // ticks, without a word).
+    assert!(
+        printed.contains("stopped after 900 ticks (100 of them paused): "),
+        "{printed}"
+    );
     // The pause is answered with the pose after it: that pose is taken, not stepped.
     assert_eq!(answered[399], 400);
     assert!(answered[400..500].iter().all(|&t| t == 400), "{answered:?}");

@@ -89,8 +89,10 @@ impl Default for ServeOptions {
 /// What a run did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ServeSummary {
-    /// Ticks stepped.
+    /// Ticks of the loop, paused ones included.
     pub ticks: u64,
+    /// Of them, ticks spent paused (the world not stepped).
+    pub paused_ticks: u64,
     /// Ticks whose compute exceeded the period.
     pub synchronicity_misses: u64,
     /// Poses rejected.
@@ -594,6 +596,8 @@ impl<'a> Daemon<'a> {
         let stepped = !self.paused;
         if stepped {
             self.world.step();
+        } else {
+            self.summary.paused_ticks += 1;
         }
         // The divergence guard restored a body in this step: flag every tool's feedback, record
         // which body and why, count it.
