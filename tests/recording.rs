@@ -763,6 +763,10 @@ fn a_session_reset_midway_replays_bit_for_bit_across_the_reset() {
         ]
     );
     assert_summary_and_verify(&path, 1200, 1200);
+    // The duration in short (1 200 ticks of 1 ms is 1.2000000000000002 s as a float).
+    let out = replay(&[path.to_str().unwrap(), "--summary"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains(": 1.2 s simulated (1200 ticks)"), "{text}");
     std::fs::remove_file(&path).ok();
 }
 

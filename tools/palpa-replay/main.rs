@@ -108,7 +108,10 @@ fn main() -> Result<()> {
             println!(
                 "{}: {} s simulated ({} ticks){}",
                 args.file.display(),
-                s.duration_s,
+                // (Ticks times dt, to the nanosecond: 1.636, not 1.6360000000000001.)
+                format!("{:.9}", s.duration_s)
+                    .trim_end_matches('0')
+                    .trim_end_matches('.'),
                 s.ticks,
                 match (&s.damage, s.complete) {
                     (_, true) => String::new(),
