@@ -48,7 +48,15 @@ pub enum Rejection {
     SequenceBackwards,
     /// Farther from the last good pose than the speed limit allows.
     TooFast,
+    /// A coordinate beyond [`MAX_COORDINATE`]: no device's.
+    OutOfReach,
 }
+
+/// The largest coordinate a pose may have (m). A first pose (or the first after the tool went
+/// stale) is taken wherever it is, with no last pose to bound its jump: one at 1e300 m was taken,
+/// and the speed check then refused every real pose until the tool went stale again (found by an
+/// integrator's bridge, 2026-12-07).
+pub const MAX_COORDINATE: f64 = 1000.0;
 
 /// The input state of one externally driven tool.
 #[derive(Clone, Debug, Default)]
@@ -107,6 +115,9 @@ impl ToolInputState {
             .chain([&pose.jaw]);
         if numbers.into_iter().any(|x| !x.is_finite()) {
             return Err(Rejection::NonFinite);
+        }
+        if pose.position.iter().any(|x| x.abs() > MAX_COORDINATE) {
+            return Err(Rejection::OutOfReach);
         }
         let [w, x, y, z] = pose.orientation;
         let q = Quaternion::new(w, x, y, z);
@@ -192,6 +203,17 @@ mod tests {
         assert_eq!(state.rejected, 4);
         let (good, _) = state.offer(&pose(6, 0.001), 6, 0.001, &limits).unwrap();
         assert_eq!(good.position_in_world.x, 0.001);
+        // Far out of any device's reach, first pose or not.
+        assert_eq!(
+            state.offer(&pose(7, 1e300), 7, 0.001, &limits),
+            Err(Rejection::OutOfReach)
+        );
+        let mut fresh = ToolInputState::default();
+        assert_eq!(
+            fresh.offer(&pose(1, -1001.0), 1, 0.001, &limits),
+            Err(Rejection::OutOfReach)
+        );
+        assert!(fresh.offer(&pose(2, -999.0), 2, 0.001, &limits).is_ok());
     }
 
     #[test]
