@@ -1027,12 +1027,10 @@ fn coarse_step_lines(world: &World) -> Vec<String> {
         .filter(|b| !b.rigid.fixed)
         .filter_map(|b| {
             let positions = &b.surface.position_in_world;
-            let (mut lo, mut hi) = (positions.first()?.to_owned(), positions.first()?.to_owned());
-            for p in positions {
-                lo = lo.inf(p);
-                hi = hi.sup(p);
-            }
-            let thinnest = (hi - lo).min();
+            positions.first()?;
+            let mut bounds = palpa::collision::tool::Aabb::empty();
+            positions.iter().for_each(|p| bounds.include(p));
+            let thinnest = (bounds.max - bounds.min).min();
             (fall > 0.1 * thinnest).then(|| {
                 format!(
                     "body `{}`: gravity alone moves it {:.4} m in one step of {dt} s, more than a tenth \

@@ -539,16 +539,29 @@ fn cutting_blade_mask(
             }
             cutter.through[index] = true;
             cutter.away[index] = 0;
-            for contact in &mut body.surface.tool_contact {
-                if contact.tool == index as u32 {
-                    *contact = crate::contact::tool::ToolContact::default();
-                }
-            }
-            held.invalidate();
+            let_go(&mut body.surface, held, |c| c.tool == index as u32);
         }
         mask |= tool_bit(index);
     }
     mask
+}
+
+/// The tools let go of the nodes whose contact `which` picks (their hold lists swept again).
+fn let_go(
+    surface: &mut crate::body::Surface,
+    held: &mut HeldNodes,
+    which: impl Fn(&crate::contact::tool::ToolContact) -> bool,
+) {
+    let mut released = false;
+    for contact in &mut surface.tool_contact {
+        if which(contact) {
+            *contact = crate::contact::tool::ToolContact::default();
+            released = true;
+        }
+    }
+    if released {
+        held.invalidate();
+    }
 }
 
 /// Rounds of contact and implicit re-solve per step (each pins the nodes the contact stage resolved).
@@ -1675,16 +1688,9 @@ impl World {
                 // for as long as the tool stayed (found by an integrator's bridge, 2026-12-07).
                 // A grasp is let go when the restore failed again.
                 let again = guard.events_in_a_row() >= 2;
-                let mut released = false;
-                for contact in &mut body.surface.tool_contact {
-                    if contact.tool != crate::body::NO_TOOL && (contact.grasp.is_none() || again) {
-                        *contact = crate::contact::tool::ToolContact::default();
-                        released = true;
-                    }
-                }
-                if released {
-                    self.broad[b].held.invalidate();
-                }
+                let_go(&mut body.surface, &mut self.broad[b].held, |c| {
+                    c.tool != crate::body::NO_TOOL && (c.grasp.is_none() || again)
+                });
                 // The restored shape may cross an obstacle the deformed one was resting on.
                 for x in &mut body.surface.position_in_world {
                     for o in &self.obstacles {
