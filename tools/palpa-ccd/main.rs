@@ -22,6 +22,10 @@
 //! `{"file":…,"query":I,"truth":B,"hit":B,"exhausted":B,"boxes":N,"time_of_impact":X,"ns":X}`
 //! (I counts from 0 in the file's order; `ns` is the query's time as above) — to find the costly
 //! ones.
+//!
+//! `--max-boxes N` sets [`CcdSettings::max_boxes`] (the most boxes one query examines; the library's
+//! default otherwise): past it a query is reported as a hit, `exhausted`, at the earliest time not
+//! yet resolved — to see what a budget costs in time and in false positives.
 
 mod query_file;
 
@@ -41,11 +45,12 @@ const QUERY_ROUNDS: usize = 5;
 /// Least duration of one round of one query's calls.
 const QUERY_SPAN: Duration = Duration::from_micros(20);
 
-const USAGE: &str = "usage: palpa-ccd [--queries] FILE_OR_DIR...\n\
+const USAGE: &str = "usage: palpa-ccd [--queries] [--max-boxes N] FILE_OR_DIR...\n\
     Runs palpa's CCD narrow phase on CCD benchmark query files (CSV, 8 rows per query) and prints\n\
     one JSON line per file. A directory is searched recursively for *.csv files; the query kind is\n\
     the name of each file's folder: vertex-face or edge-edge. --queries adds a line per query\n\
-    (truth, hit, boxes examined, time in ns).";
+    (truth, hit, boxes examined, time in ns). --max-boxes sets the most boxes one query examines\n\
+    (the library's default when not given; past it a query reports a conservative hit).";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -57,13 +62,30 @@ fn main() -> ExitCode {
         println!("{USAGE}");
         return ExitCode::SUCCESS;
     }
-    let per_query = args.iter().any(|a| a == "--queries");
-    let paths: Vec<String> = args.into_iter().filter(|a| a != "--queries").collect();
+    let mut per_query = false;
+    let mut settings = CcdSettings::default();
+    let mut paths = Vec::new();
+    let mut args = args.into_iter();
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--queries" => per_query = true,
+            "--max-boxes" => match args.next().map(|n| n.parse::<u32>()) {
+                Some(Ok(n)) if n > 0 => settings.max_boxes = n,
+                _ => {
+                    eprintln!(
+                        "palpa-ccd: --max-boxes takes a whole number of boxes above 0\n{USAGE}"
+                    );
+                    return ExitCode::from(2);
+                }
+            },
+            _ => paths.push(arg),
+        }
+    }
     if paths.is_empty() {
         eprintln!("{USAGE}");
         return ExitCode::from(2);
     }
-    match run(&paths, per_query) {
+    match run(&paths, per_query, &settings) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("palpa-ccd: {error}");
@@ -100,7 +122,7 @@ enum CcdError {
     Write { error: io::Error },
 }
 
-fn run(args: &[String], per_query: bool) -> Result<(), CcdError> {
+fn run(args: &[String], per_query: bool, settings: &CcdSettings) -> Result<(), CcdError> {
     // Every file and its kind first, so that a wrong argument fails before any output.
     let mut files = Vec::new();
     for arg in args {
@@ -110,7 +132,6 @@ fn run(args: &[String], per_query: bool) -> Result<(), CcdError> {
         .into_iter()
         .map(|path| Ok((kind_of(&path)?, path)))
         .collect::<Result<Vec<_>, CcdError>>()?;
-    let settings = CcdSettings::default();
     let mut out = std::io::stdout().lock();
     let several = files.len() > 1;
     let mut all = Report::default();
@@ -125,10 +146,10 @@ fn run(args: &[String], per_query: bool) -> Result<(), CcdError> {
             path: path.clone(),
             error,
         })?;
-        let (report, times) = evaluate(kind, &queries, &settings);
+        let (report, times) = evaluate(kind, &queries, settings);
         if per_query {
             for (index, (q, ns)) in queries.iter().zip(&times).enumerate() {
-                let line = query_line(&path.display().to_string(), index, kind, q, *ns, &settings);
+                let line = query_line(&path.display().to_string(), index, kind, q, *ns, settings);
                 if !write_line(&mut out, &line)? {
                     return Ok(());
                 }
