@@ -322,6 +322,139 @@ fn vertices_sliding_in_the_triangles_plane_are_settled_with_exact_answers() {
     assert!(hits > 200, "too few contacts to tell: {hits}");
 }
 
+/// Edges translating in the plane z = 0 (ends on a grid of 2⁻¹⁰), against exact integer ground
+/// truth: two segments moving in a plane first touch at the start or where an end of one meets the
+/// other, so the earliest contact is the least of four such times (each a fraction of integers)
+/// or 0. No false negative, each true hit no later than the earliest contact and within 1e-5 of
+/// it. This guards the rule that rejects, in a coordinate plane, every box inside the domain that
+/// starts after 0 (`ccd.rs`): it fails when the rule also takes boxes on a side.
+#[test]
+fn edges_translating_in_a_plane_are_answered_with_exact_times() {
+    const SCALE: f64 = 1024.0;
+    type P = [i64; 2];
+    let sub = |a: P, b: P| [a[0] - b[0], a[1] - b[1]];
+    let cross =
+        |a: P, b: P| i128::from(a[0]) * i128::from(b[1]) - i128::from(a[1]) * i128::from(b[0]);
+    let dot =
+        |a: P, b: P| i128::from(a[0]) * i128::from(b[0]) + i128::from(a[1]) * i128::from(b[1]);
+    // The earliest t in [0, 1] (numerator, denominator > 0) at which the point p + t w lies on the
+    // segment [c, d] (not of zero length), if any.
+    let point_on_segment = |p: P, w: P, c: P, d: P| -> Option<(i128, i128)> {
+        let (dc, pc) = (sub(d, c), sub(p, c));
+        let (across, rate) = (cross(dc, pc), cross(dc, w));
+        let length2 = dot(dc, dc);
+        // Where along [c, d] the point is at t = n / m: dot(pc + t w, dc) / |dc|² in [0, 1].
+        let along = |n: i128, m: i128| {
+            let x = dot(pc, dc) * m + dot(w, dc) * n;
+            (0..=length2 * m).contains(&x)
+        };
+        if rate != 0 {
+            let (mut n, mut m) = (-across, rate);
+            if m < 0 {
+                (n, m) = (-n, -m);
+            }
+            ((0..=m).contains(&n) && along(n, m)).then_some((n, m))
+        } else if across != 0 {
+            None
+        } else {
+            // On the line all along: the earliest t whose place along [c, d] is in [0, 1].
+            let (start, speed) = (dot(pc, dc), dot(w, dc));
+            if (0..=length2).contains(&start) {
+                Some((0, 1))
+            } else if speed == 0 {
+                None
+            } else {
+                let target = if start < 0 { 0 } else { length2 };
+                let (mut n, mut m) = (target - start, speed);
+                if m < 0 {
+                    (n, m) = (-n, -m);
+                }
+                (0..=m).contains(&n).then_some((n, m))
+            }
+        }
+    };
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 33
+    };
+    let settings = CcdSettings::default();
+    let (mut hits, mut exhausted, mut false_positives) = (0, 0, 0);
+    let mut tested = 0;
+    while tested < 2000 {
+        let mut point =
+            |range: i64| [0, 0].map(|_| (next() % (2 * range as u64 + 1)) as i64 - range);
+        let (a, b, c, d) = (
+            point(768).map(|x| x + 512),
+            point(768).map(|x| x + 512),
+            point(768).map(|x| x + 512),
+            point(768).map(|x| x + 512),
+        );
+        let w = point(1024);
+        if a == b || c == d {
+            continue;
+        }
+        tested += 1;
+        let neg = |p: P| [-p[0], -p[1]];
+        // At the start: either end of one on the other, or a proper crossing.
+        let crossing = {
+            let side = |p: P| cross(sub(b, a), sub(p, a)).signum();
+            let other = |p: P| cross(sub(d, c), sub(p, c)).signum();
+            side(c) * side(d) < 0 && other(a) * other(b) < 0
+        };
+        let events = [
+            point_on_segment(a, w, c, d),
+            point_on_segment(b, w, c, d),
+            point_on_segment(c, neg(w), a, b),
+            point_on_segment(d, neg(w), a, b),
+        ];
+        let earliest = if crossing {
+            Some((0, 1))
+        } else {
+            events
+                .into_iter()
+                .flatten()
+                .min_by(|x, y| (x.0 * y.1).cmp(&(y.0 * x.1)))
+        };
+        let at = |p: P| Vec3::new(p[0] as f64 / SCALE, p[1] as f64 / SCALE, 0.0);
+        let moved = |p: P| at([p[0] + w[0], p[1] + w[1]]);
+        let hit = edge_edge_time_of_impact(
+            &at(a),
+            &at(b),
+            &at(c),
+            &at(d),
+            &moved(a),
+            &moved(b),
+            &at(c),
+            &at(d),
+            &settings,
+        );
+        match (hit, earliest) {
+            (None, None) => {}
+            (None, Some(t)) => {
+                panic!("{a:?} {b:?} {c:?} {d:?} moving {w:?}: missed the contact at {t:?}")
+            }
+            (Some(_), None) => false_positives += 1,
+            (Some(h), Some((n, m))) => {
+                let t = n as f64 / m as f64;
+                assert!(
+                    h.time_of_impact <= t && (h.exhausted || h.time_of_impact >= t - 1e-5),
+                    "{a:?} {b:?} {c:?} {d:?} moving {w:?}: {h:?}, the earliest contact at {t}"
+                );
+                hits += 1;
+                exhausted += usize::from(h.exhausted);
+            }
+        }
+    }
+    println!(
+        "{hits} of 2000 edges translating in a plane hit ({exhausted} exhausted); \
+         {false_positives} false positives"
+    );
+    assert!(hits > 200, "too few contacts to tell: {hits}");
+}
+
 fn palpa_ccd(args: &[&Path]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_palpa-ccd"))
         .args(args)
