@@ -125,21 +125,34 @@ fn run_query(kind: Kind, q: &Query, settings: &CcdSettings) -> Option<CcdHit> {
     }
 }
 
+/// The default settings, those with a budget no query reaches, and those with a budget of
+/// [`SETTLED_WITHIN`] boxes.
+fn budgets() -> [CcdSettings; 3] {
+    let settings = CcdSettings::default();
+    let with = |max_boxes| CcdSettings {
+        max_boxes,
+        ..settings
+    };
+    [settings, with(10_000), with(SETTLED_WITHIN)]
+}
+
+/// A xorshift64* stream from `seed`: the same queries on every machine.
+fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+    move || {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 33
+    }
+}
+
 /// (queries, positives, false negatives, false positives, most boxes a hit took) of one file with
 /// the default settings, and the most boxes a hit takes with a budget that none reaches. Every
 /// query must also be settled within [`SETTLED_WITHIN`] boxes: the same answer, to the bit, as
 /// with a budget none reaches (a rejection's boxes are not reported; this bounds them too).
 fn counts(path: &Path) -> (usize, usize, usize, usize, u32) {
     let kind = kind_of(path);
-    let settings = CcdSettings::default();
-    let unbounded = CcdSettings {
-        max_boxes: 10_000,
-        ..settings
-    };
-    let half = CcdSettings {
-        max_boxes: SETTLED_WITHIN,
-        ..settings
-    };
+    let [settings, unbounded, half] = budgets();
     let (mut queries, mut positives, mut false_negatives, mut false_positives) = (0, 0, 0, 0);
     let mut most_boxes = 0;
     for (i, q) in read_queries(path).iter().enumerate() {
@@ -249,24 +262,9 @@ fn no_false_negative_in_any_sample_query_file() {
 #[test]
 fn vertices_sliding_in_the_triangles_plane_are_settled_with_exact_answers() {
     const SCALE: f64 = 1024.0;
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut next = || {
-        // xorshift64*: the same queries on every machine.
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 33
-    };
+    let mut next = xorshift(0x2545_f491_4f6c_dd1d);
     let (a, b, c) = (Vec3::zeros(), Vec3::x(), Vec3::y());
-    let settings = CcdSettings::default();
-    let unbounded = CcdSettings {
-        max_boxes: 10_000,
-        ..settings
-    };
-    let half = CcdSettings {
-        max_boxes: SETTLED_WITHIN,
-        ..settings
-    };
+    let [settings, unbounded, half] = budgets();
     let (mut hits, mut most_boxes, mut false_positives) = (0, 0, 0);
     for i in 0..2000 {
         // Ends in [-0.25, 1.25]² (integers of 1/1024).
@@ -373,13 +371,7 @@ fn edges_translating_in_a_plane_are_answered_with_exact_times() {
             }
         }
     };
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = || {
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 33
-    };
+    let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
     let settings = CcdSettings::default();
     let (mut hits, mut exhausted, mut false_positives) = (0, 0, 0);
     let mut tested = 0;

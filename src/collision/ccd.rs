@@ -28,9 +28,12 @@
 //! * time intervals with float ends, cut where a coordinate that provably has no zero on the box's
 //!   start face can first reach zero (F is affine in t at each (u, v) corner), instead of halved
 //!   level after level towards that front;
-//! * and cut just before a root that Newton's method finds in the box (on the domain's sides when
+//! * cut just before a root that Newton's method finds in the box (on the domain's sides when
 //!   F keeps to a plane), so that a crossing at an angle is settled in a few boxes instead of
-//!   being closed in on one bit at a time (`ContactFunction::newton_time_cut`).
+//!   being closed in on one bit at a time (`ContactFunction::newton_time_cut`);
+//! * and, where the primitives move in a coordinate plane (F exactly 0 on an axis), a box inside
+//!   the (u, v) domain that starts after 0 is thrown away: there the earliest contact is at the
+//!   start or on a side of the domain (see `ContactFunction::evaluate`).
 //!
 //! Why no contact is ever missed: the u and v intervals are dyadic (k / 2^level) and the time
 //! intervals' ends are floats, so the corners are exact floats and two parts of a box share their
@@ -97,7 +100,7 @@ impl Default for CcdSettings {
 /// budget takes 18 to 30 µs. Every query of the public benchmark's shared set settles within 59
 /// boxes (6.2 µs at most), and 1 200 made degenerate on purpose (edges sliding parallel,
 /// vertices sliding in, beside or just above the triangle's plane) within 28 (3.5 µs); edges
-/// moving and turning in one plane still spend it in 1 to 2 % of random cases. A budget of 64
+/// moving in a coordinate plane still spend it in about 1 case in 1 000. A budget of 64
 /// changed the simulation's answers where a probe crushes one organ into another (queries past
 /// 64 boxes, whose earlier times of impact left two nodes crossed after the lift): kept at 128.
 pub const DEFAULT_MAX_BOXES: u32 = 128;
