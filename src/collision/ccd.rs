@@ -722,8 +722,8 @@ impl ContactFunction {
     #[inline(always)]
     fn evaluate(&self, b: &ParamBox, failed_witnesses: &mut WitnessMemo, boxes: u32) -> Verdict {
         let (t_lo, t_hi) = b.t;
-        let (u_lo, u_hi) = b.u.bounds();
-        let (v_lo, v_hi) = b.v.bounds();
+        let (mut u_lo, mut u_hi) = b.u.bounds();
+        let (mut v_lo, mut v_hi) = b.v.bounds();
         // Rounding is monotone and 1 is a float, so a computed sum above 1 means an exact one
         // above 1: the whole box is beyond the triangle's hypotenuse.
         if self.triangle && u_lo + v_lo > 1.0 {
@@ -741,16 +741,30 @@ impl ContactFunction {
         // plane had the boxes on either side of their contacts' curve cut in time one by one,
         // all over the (u, v) square: 128 boxes, the budget, in 1 to 2 % of random cases.)
         if self.planar && t_lo > 0.0 {
-            let on_side = u_lo == 0.0
-                || v_lo == 0.0
-                || if self.triangle {
-                    // (Exact: dyadic parameters of at most 52 bits.)
-                    u_hi + v_hi >= 1.0
-                } else {
-                    u_hi == 1.0 || v_hi == 1.0
-                };
-            if !on_side {
+            // (Exact: dyadic parameters of at most 52 bits.)
+            let hypotenuse = self.triangle && u_hi + v_hi >= 1.0;
+            let sides = [
+                u_lo == 0.0,
+                v_lo == 0.0,
+                !self.triangle && u_hi == 1.0,
+                !self.triangle && v_hi == 1.0,
+            ];
+            let on = sides.iter().filter(|&&side| side).count();
+            if on == 0 && !hypotenuse {
                 return Verdict::Reject;
+            }
+            // On one side of the square (or of the triangle, along u = 0 or v = 0) only: the
+            // rest of the box holds no earliest contact, so the box is examined on that face
+            // alone — tighter bounds, and no split across the side. (Edges moving in a
+            // coordinate plane had their boxes along the side split in all three parameters:
+            // up to 128 boxes, the budget.)
+            if on == 1 && !hypotenuse {
+                match sides.iter().position(|&side| side) {
+                    Some(0) => u_hi = 0.0,
+                    Some(1) => v_hi = 0.0,
+                    Some(2) => u_lo = 1.0,
+                    _ => v_lo = 1.0,
+                }
             }
         }
         // The two ends of the time interval side by side (the compiler pairs them in SIMD lanes).
