@@ -631,13 +631,18 @@ fn binary_refuses_bad_input_naming_file_and_line() {
     }
 }
 
+/// A query file `name` holding `rows`, in a `vertex-face` folder of the test's own scratch folder.
+fn vertex_face_file(test: &str, name: &str, rows: &str) -> PathBuf {
+    let folder = scratch(test).join("vertex-face");
+    std::fs::create_dir_all(&folder).expect("create folder");
+    let file = folder.join(name);
+    std::fs::write(&file, rows).expect("write query file");
+    file
+}
+
 #[test]
 fn binary_lists_every_query_when_asked() {
-    let dir = scratch("per_query");
-    let folder = dir.join("vertex-face");
-    std::fs::create_dir_all(&folder).expect("create folder");
-    let file = folder.join("two.csv");
-    std::fs::write(&file, query_rows(1) + &query_rows(1)).expect("write query file");
+    let file = vertex_face_file("per_query", "two.csv", &(query_rows(1) + &query_rows(1)));
     let flag = Path::new("--queries");
     let output = palpa_ccd(&[flag, &file]);
     let (stdout, lines) = json_lines(output);
@@ -659,11 +664,7 @@ fn binary_lists_every_query_when_asked() {
 
 #[test]
 fn binary_takes_a_box_budget_and_refuses_a_bad_one() {
-    let dir = scratch("budget");
-    let folder = dir.join("vertex-face");
-    std::fs::create_dir_all(&folder).expect("create folder");
-    let file = folder.join("one.csv");
-    std::fs::write(&file, query_rows(1)).expect("write query file");
+    let file = vertex_face_file("budget", "one.csv", &query_rows(1));
     let (queries, budget) = (Path::new("--queries"), Path::new("--max-boxes"));
     // One box is not enough to settle the point falling through the face: a hit, exhausted, at
     // the earliest time not yet resolved (the start); the default budget settles it.

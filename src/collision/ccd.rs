@@ -100,7 +100,7 @@ impl Default for CcdSettings {
 /// budget takes 18 to 30 µs. Every query of the public benchmark's shared set settles within 59
 /// boxes (6.2 µs at most), and 1 200 made degenerate on purpose (edges sliding parallel,
 /// vertices sliding in, beside or just above the triangle's plane) within 28 (3.5 µs); edges
-/// moving in a coordinate plane still spend it in about 1 case in 1 000. A budget of 64
+/// moving in a coordinate plane still spend it in about 1 case in 2 000 to 3 000. A budget of 64
 /// changed the simulation's answers where a probe crushes one organ into another (queries past
 /// 64 boxes, whose earlier times of impact left two nodes crossed after the lift): kept at 128.
 pub const DEFAULT_MAX_BOXES: u32 = 128;
