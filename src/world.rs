@@ -954,6 +954,17 @@ impl World {
         }
     }
 
+    /// The most boxes one continuous query of the body–body collision net examines
+    /// ([`crate::collision::ccd::CcdSettings::max_boxes`]; default
+    /// [`crate::collision::ccd::DEFAULT_MAX_BOXES`]). A query past it is answered as a hit at the
+    /// earliest time it had not resolved and counted in `counters.bodies.budget_spent` (for tests
+    /// and benchmarks).
+    pub fn set_ccd_max_boxes(&mut self, max_boxes: u32) {
+        if let Some(scratch) = self.body_contact.as_mut() {
+            scratch.set_ccd_max_boxes(max_boxes);
+        }
+    }
+
     /// Lets a second thread run half of the force passes of each body of
     /// [`crate::dynamics::kernel::SPLIT_NODES`] nodes or more (the default), or keeps every pass on
     /// the step's thread; the result bits are the same either way.

