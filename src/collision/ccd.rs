@@ -104,12 +104,11 @@ impl Default for CcdSettings {
 /// (3.5 µs); edges moving in a coordinate plane spend it in about 1 case in 230 to 375 (1 in 2 000
 /// to 3 000 at 128), each then a hit at the earliest time not yet resolved (conservative; the world
 /// counts them, `BodyContactCounters::budget_spent`). The simulation's own queries spend it in a
-/// body folding onto itself (`scenes/self_fold.toml`, 3 s): 244 of 5 729 collisions, ordinary
-/// crossings of millimetre edges moving a millimetre that take 65 to 99 boxes to settle (none at
-/// 128); their times of impact come out a median 3.4e-4 of a tick before the exact ones (90 % within
-/// 1.3e-3; the net stops a node at 0.9 of it), and 2 of them are collisions where there is none.
-/// Halving the budget from 128 changed that scene's golden digest alone; a stack crushed by a
-/// probe still comes apart when it lifts.
+/// body folding onto itself (`scenes/self_fold.toml`, 3 s): 4 of 5 781 collisions. (Halved from
+/// 128 on 2026-12-08, it was 244 of 5 729 at first: ordinary crossings of millimetre edges moving
+/// a millimetre took 65 to 99 boxes, answered a median 3.4e-4 of a tick early; the cut before a
+/// Newton root as far as the witness reaches, [`ContactFunction::cut_before`], settles them in 19
+/// to 34.) A stack crushed by a probe still comes apart when it lifts (`tests/body_contact.rs`).
 pub const DEFAULT_MAX_BOXES: u32 = 64;
 
 /// Outcome of one query that may be a contact.
@@ -1006,10 +1005,17 @@ impl ContactFunction {
         self.cut_before(b, (t, rate), u, v)
     }
 
-    /// The cut before a root at time `root`, where F changes at `rate` with time: just before it
-    /// (by what moves F by an eighth of the tolerance there) if that leaves at least
-    /// [`MIN_FRONT_FRACTION`] of the box's time before it, otherwise the root's (u, v) for a
-    /// witness at the box's start, with the cut for when that witness fails.
+    /// The cut before a root at time `root`, where F changes at `rate` with time: as far before it
+    /// as a witness's neighbourhood reaches in time (what moves F by an eighth of the tolerance at
+    /// the larger of `rate` and [`ContactFunction::time_rate`]), so that the witness at the later
+    /// part's start has the root within it, if that leaves at least [`MIN_FRONT_FRACTION`] of the
+    /// box's time before it; otherwise the root's (u, v) for a witness at the box's start, with
+    /// the cut for when that witness fails. (Up to 2026-12-07, outside coordinate planes, the cut
+    /// was by the rate at the root alone, which may be a fraction of the bound the witness uses
+    /// where an edge turns: the witness at the cut then failed, and the search went on halving
+    /// (u, v) and time down to the root — ordinary crossings of millimetre edges in a body
+    /// folding onto itself took 65 to 99 boxes, 19 to 34 since. Edges in one plane, the end of one
+    /// turning onto the other, spent the budget the same way before it was mended there first.)
     #[inline(always)]
     fn cut_before(
         &self,
@@ -1019,22 +1025,12 @@ impl ContactFunction {
         v: f64,
     ) -> Option<NewtonRoot> {
         let (t_lo, t_hi) = b.t;
-        let cut = root - WITNESS_SCALE * self.tolerance / (2.0 * rate);
+        let cut = root - WITNESS_SCALE * self.tolerance / (2.0 * rate.max(self.time_rate()));
         let least = t_lo + MIN_FRONT_FRACTION * (t_hi - t_lo);
         if cut >= t_hi {
             None
         } else if cut > least {
             Some(NewtonRoot::Cut(cut))
-        } else if self.planar {
-            // As far before the root as a witness's neighbourhood reaches in time
-            // ([`ContactFunction::time_rate`]), so that the witness at the cut has the root
-            // within it (the rate at the root may be a third of that bound where an edge turns:
-            // edges in one plane, the end of one turning onto the other, then went on cutting
-            // and halving time down to the root, the budget spent). Only where the primitives move
-            // in a coordinate plane: elsewhere it moved the collision net's times of impact in the
-            // simulation, and a stack crushed by a probe then stayed crossed after the lift.
-            let reach = WITNESS_SCALE * self.tolerance / (2.0 * rate.max(self.time_rate()));
-            Some(NewtonRoot::AtStart(u, v, root - reach))
         } else {
             Some(NewtonRoot::AtStart(u, v, cut))
         }
@@ -1879,6 +1875,69 @@ mod tests {
             "{hit:?}"
         );
         assert!(hit.boxes <= 32, "{hit:?}");
+    }
+
+    /// Two millimetre edges of a body folding onto itself (`scenes/self_fold.toml`, recorded from
+    /// its collision net), crossing at an angle with their ends moving up to 1.2 mm in the tick:
+    /// Newton's root lies within a witness's reach of the box's start by the rate at the root, not
+    /// by the bound the witness uses. The cut as far before the root as the witness reaches
+    /// settles it in 29 boxes; cut by the rate at the root alone, the search halved u, v and time
+    /// down to it, 77 boxes (past the budget of 64).
+    #[test]
+    fn a_crossing_of_edges_in_a_fold_is_settled_by_the_cut_before_its_root() {
+        let a = [
+            v(
+                -0.013751237982412559,
+                0.013506669415953645,
+                0.0005107201890253262,
+            ),
+            v(
+                -0.013774176156717582,
+                0.013531083685164076,
+                0.0004781842189144616,
+            ),
+        ];
+        let b = [
+            v(
+                -0.011437679631904023,
+                0.015996505377867846,
+                0.0007532350075357823,
+            ),
+            v(
+                -0.011599272084383007,
+                0.016162595095376205,
+                0.00042156511887202707,
+            ),
+        ];
+        let c = [
+            v(
+                -0.012616596468963523,
+                0.015486662725319598,
+                0.0009676000099448752,
+            ),
+            v(
+                -0.013489820516473027,
+                0.014941903849019542,
+                0.00027192781511511417,
+            ),
+        ];
+        let d = [
+            v(
+                -0.011438207911460224,
+                0.01584074881920941,
+                0.0007416571297294048,
+            ),
+            v(
+                -0.011403618496693834,
+                0.015705491126503456,
+                0.0004617083463867208,
+            ),
+        ];
+        let hit = ee(a, b, c, d).expect("the edges cross");
+        assert!(!hit.exhausted, "{hit:?}");
+        assert!(hit.boxes <= 40, "{hit:?}");
+        // The same time as the search without a budget finds (0.75173, within the tolerance).
+        assert!((0.7516..=0.7519).contains(&hit.time_of_impact), "{hit:?}");
     }
 
     /// Edge a translating with velocity `w` crosses the fixed edge b at `t_star`, at `u_star` along
