@@ -1477,8 +1477,9 @@ fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
 
 /// The crushing test's stack pressed harder and left: an 8 mm probe with no force limit pushed to
 /// 4.5 cm above the table (its tip 1.2 cm into the lower organ), stroked 3 cm sideways, held there
-/// until 4 s and lifted clear by 4.5 s. Under the press the probe holds nodes of both organs and drags them through each
-/// other's surfaces, which the net cannot stop (it moves no node a tool holds). Before the
+/// until 4 s and lifted clear by 4.5 s. Under the press the probe holds nodes of both organs and
+/// drags them through each other's surfaces, which the net cannot stop (it moves no node a tool
+/// holds). Before the
 /// untangling (`contact/untangle.rs`) the crossing outlived the press for good: 6 nodes of the
 /// lower organ inside the upper and 10 of the upper inside the lower from the lift to the end,
 /// twelve crossing edge–face pairs, the net answering 25–36 collisions a tick and the ticks
@@ -1486,8 +1487,9 @@ fn a_probe_crushing_one_organ_into_another_drives_no_node_to_the_guard() {
 /// triangles that cross already is let through: from a quarter second into the lift no node is
 /// inside the other organ, no edge of one passes through a face of the other, and from 5 s the net
 /// answers nothing. (At 4 s the probe still holds both organs: whether that tick finds them crossed
-/// turns on the press's last ticks — a budget of 64 boxes a CCD query found 2 nodes and 24 pairs
-/// there, 0 by 4.25 s — so it is counted under the press.)
+/// turns on the press's last ticks — on 2026-12-08, with a budget of 64 boxes a CCD query and the
+/// cut before a Newton root of then, 2 nodes and 24 pairs there, 0 by 4.25 s — so it is counted
+/// under the press.)
 #[test]
 fn a_stack_crushed_through_itself_by_a_probe_comes_apart_when_it_lifts() {
     let text = crushed_stack(

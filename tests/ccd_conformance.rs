@@ -208,8 +208,9 @@ const MOST_BOXES: u32 = 300;
 
 /// Every query of the shared set, hit or not, is settled within this many boxes (the most a hit
 /// takes is 59), the default budget since 2026-12-08 (half of it before): the budget changes
-/// none of the shared set's answers (the worst query's time is its boxes times a box's cost). Before the Newton cuts, the triangle's part across its hypotenuse and the start and end
-/// normals (2026-12-04), hits took up to 184 boxes and the slowest rejections close to 128.
+/// none of the shared set's answers (the worst query's time is its boxes times a box's cost).
+/// Before the Newton cuts, the triangle's part across its hypotenuse and the start and end normals
+/// (2026-12-04), hits took up to 184 boxes and the slowest rejections close to 128.
 const SETTLED_WITHIN: u32 = 64;
 
 #[test]
