@@ -101,7 +101,7 @@ impl Default for CcdSettings {
 /// public benchmark's shared set settles within 59 boxes (6.2 µs at most), so the budget changes
 /// none of its answers or times of impact; 1 200 made degenerate on purpose (edges sliding
 /// parallel, vertices sliding in, beside or just above the triangle's plane) settle within 28
-/// (3.5 µs); edges moving in a coordinate plane spend it in about 1 case in 230 to 375 (1 in 2 000
+/// (3.5 µs); edges moving in a coordinate plane spend it in about 1 case in 430 to 3 000 (1 in 2 000
 /// to 3 000 at 128), each then a hit at the earliest time not yet resolved (conservative; the world
 /// counts them, `BodyContactCounters::budget_spent`). The simulation's own queries spend it in a
 /// body folding onto itself (`scenes/self_fold.toml`, 3 s): 4 of 5 781 collisions. (Halved from
