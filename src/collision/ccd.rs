@@ -844,7 +844,11 @@ impl ContactFunction {
             if self.witness_at(t_lo, t_hi) {
                 return Verdict::Accept;
             }
-            failed_witnesses.insert(b.t);
+            // (A box examined at its start alone asked with no time after it: not remembered
+            // for the boxes of its time interval that ask with the whole interval.)
+            if !at_start_only {
+                failed_witnesses.insert(b.t);
+            }
         }
         // Split the parameter along which F changes most over the box: "widest" measured in the
         // units of F, so a parameter that F hardly depends on is not split in vain.
